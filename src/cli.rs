@@ -1,0 +1,145 @@
+//! Command-line interface. Parsing and dispatch only; the work lives in the library.
+
+use crate::error::{Error, Result};
+use crate::registry::{objective_kinds, optimizer_kinds};
+use crate::report::table::{markdown, summary_table};
+use crate::results::{Provenance, write_run};
+use crate::runner::{RunOptions, run_suite};
+use crate::suite::Suite;
+use clap::{Parser, Subcommand};
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+/// Reproducible benchmarks of optimizers on test functions and hysteresis fitting.
+#[derive(Parser, Debug)]
+#[command(name = "optbench", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Run every trial of a suite and write results/<suite name>/.
+    Run(RunArgs),
+    /// List objectives and optimizers with their parameters and defaults.
+    List,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct RunArgs {
+    /// Suite file (TOML), e.g. suites/functions.toml.
+    pub suite: PathBuf,
+    /// Results folder (default: results/<suite name>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Override the suite's number of trials.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub trials: Option<u32>,
+    /// Worker threads for trials (default: one per core). Results do not depend on it.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub threads: Option<u32>,
+    /// Override the suite's seed.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// No progress bar and no table.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// Entry point: returns the process exit code.
+pub fn main() -> i32 {
+    let cli = Cli::parse();
+    match dispatch(cli) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {e}");
+            e.exit_code()
+        }
+    }
+}
+
+fn dispatch(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Run(args) => run(args),
+        Command::List => {
+            print!("{}", list());
+            Ok(())
+        }
+    }
+}
+
+fn run(args: RunArgs) -> Result<()> {
+    let mut suite = Suite::load(&args.suite)?;
+    if let Some(t) = args.trials {
+        suite.trials = t as usize;
+    }
+    if let Some(s) = args.seed {
+        suite.seed = s;
+    }
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("results").join(&suite.name));
+    if out.is_file() {
+        return Err(Error::Input(format!(
+            "--out {}: is a file, expected a folder",
+            out.display()
+        )));
+    }
+    let started = std::time::SystemTime::now();
+    let opts = RunOptions {
+        threads: args.threads.map(|t| t as usize),
+        progress: !args.quiet && std::io::stdout().is_terminal() && std::io::stderr().is_terminal(),
+    };
+    let (records, threads) = run_suite(&suite, &opts)?;
+    let provenance = Provenance::new(&suite, threads, started);
+    let summary = write_run(&out, &suite, &records, &provenance)?;
+    if !args.quiet {
+        println!(
+            "suite {} (seed {}, {} trials, {} threads, {:.1} s)\n",
+            suite.name, suite.seed, suite.trials, threads, provenance.wall_s
+        );
+        print!("{}", summary_table(&summary));
+        println!("\nresults: {}", out.display());
+    }
+    Ok(())
+}
+
+/// The text of `optbench list`.
+pub fn list() -> String {
+    let mut s = String::new();
+    let section = |s: &mut String, title: &str, name: &str, help: &str, params: &[crate::params::Spec]| {
+        s.push_str(&format!("{title} `{name}`: {help}\n"));
+        let rows: Vec<Vec<String>> = params
+            .iter()
+            .map(|p| {
+                vec![
+                    p.name.to_string(),
+                    p.kind.to_string(),
+                    p.default.to_string(),
+                    p.help.to_string(),
+                ]
+            })
+            .collect();
+        if rows.is_empty() {
+            s.push_str("  (no parameters)\n\n");
+        } else {
+            for line in markdown(&["parameter", "type", "default", "meaning"], &rows, &[]).lines() {
+                s.push_str("  ");
+                s.push_str(line);
+                s.push('\n');
+            }
+            s.push('\n');
+        }
+    };
+    s.push_str("OBJECTIVES ([[objective]] kind = ...; also id, budget, targets, stop_at)\n\n");
+    for k in objective_kinds() {
+        section(&mut s, "objective", k.name, k.help, k.params);
+    }
+    s.push_str("OPTIMIZERS ([[optimizer]] kind = ...; also id)\n\n");
+    for k in optimizer_kinds() {
+        section(&mut s, "optimizer", k.name, k.help, k.params);
+    }
+    s
+}

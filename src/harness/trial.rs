@@ -1,0 +1,95 @@
+//! One trial: an optimizer against an objective for a budget, from one seed.
+
+use super::{Evaluator, TrialSeed};
+use crate::objective::Objective;
+use crate::optimizer::OptimizerConfig;
+use serde::{Deserialize, Deserializer, Serialize};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Everything a trial needs.
+pub struct TrialSpec<'a> {
+    pub objective_id: &'a str,
+    pub optimizer_id: &'a str,
+    pub trial: usize,
+    pub objective: Arc<dyn Objective>,
+    pub optimizer: &'a dyn OptimizerConfig,
+    pub budget: u64,
+    /// End the trial once a value <= this is seen.
+    pub stop_value: Option<f64>,
+    pub seed: TrialSeed,
+}
+
+/// The stored result of one trial: one line of `traces.jsonl`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrialRecord {
+    pub objective: String,
+    pub optimizer: String,
+    pub trial: usize,
+    /// Hex key of the trial's random streams.
+    pub seed: String,
+    pub budget: u64,
+    pub evaluations: u64,
+    #[serde(deserialize_with = "f64_or_inf")]
+    pub best: f64,
+    pub best_x: Vec<f64>,
+    /// Known optimum of the objective, if any.
+    pub optimum: Option<f64>,
+    pub stopped_at_target: bool,
+    /// Evaluations that returned NaN or an infinity.
+    pub nonfinite: u64,
+    /// Wall-clock seconds; recorded, never used as a budget.
+    pub wall_s: f64,
+    /// (evaluation, best-so-far) at every improvement.
+    pub improvements: Vec<(u64, f64)>,
+    /// (evaluation, best-so-far) at log-spaced evaluation counts and at the end.
+    pub checkpoints: Vec<(u64, f64)>,
+}
+
+/// JSON has no infinity: serde_json writes it as null, so null reads back as +inf.
+fn f64_or_inf<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
+}
+
+impl TrialRecord {
+    /// Distance of the final value to the known optimum, or the value itself.
+    pub fn error(&self) -> f64 {
+        self.best - self.optimum.unwrap_or(0.0)
+    }
+}
+
+/// Runs one trial: the executor loop. The optimizer steps until the evaluator says done.
+pub fn run_trial(spec: TrialSpec<'_>) -> TrialRecord {
+    let start = Instant::now();
+    let mut optimizer = spec
+        .optimizer
+        .start(spec.objective.bounds(), spec.budget, &spec.seed);
+    let mut ev = Evaluator::new(Arc::clone(&spec.objective), spec.budget, spec.stop_value);
+    while !ev.done() {
+        let before = ev.used();
+        optimizer.step(&mut ev);
+        assert!(
+            ev.used() > before || ev.done(),
+            "optimizer {} spent no evaluation in a step",
+            spec.optimizer_id
+        );
+    }
+    drop(optimizer);
+    let trace = ev.finish();
+    TrialRecord {
+        objective: spec.objective_id.to_string(),
+        optimizer: spec.optimizer_id.to_string(),
+        trial: spec.trial,
+        seed: spec.seed.hex(),
+        budget: spec.budget,
+        evaluations: trace.evaluations,
+        best: trace.best,
+        best_x: trace.best_x,
+        optimum: spec.objective.optimum(),
+        stopped_at_target: trace.stopped_at_target,
+        nonfinite: trace.nonfinite,
+        wall_s: start.elapsed().as_secs_f64(),
+        improvements: trace.improvements,
+        checkpoints: trace.checkpoints,
+    }
+}

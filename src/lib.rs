@@ -1,0 +1,28 @@
+//! optbench: a reproducible benchmark harness for black-box optimizers, built around the
+//! identification and compensation of hysteresis in piezoelectric actuators.
+//!
+//! The flow is suite TOML -> plan -> trials (objective x optimizer x seed) -> traces ->
+//! result store -> statistics -> report. Each stage lives in its own module:
+//!
+//! - [`objective`]: the black-box [`objective::Objective`] trait and the test functions.
+//! - [`optimizer`]: optimizers (GA, PSO, MSGA, random search) that only see an evaluator.
+//! - [`harness`]: the evaluator (the one place evaluations are counted), seeding, trials.
+//! - [`suite`]: TOML suites, parameter validation, the plan of trials.
+//! - [`results`]: the result store (traces, summary, provenance), written atomically.
+//! - [`report`]: what is printed and rendered from stored results.
+//! - [`params`]: declarative parameter specifications shared by objectives and optimizers.
+
+pub mod cli;
+pub mod error;
+pub mod harness;
+pub mod objective;
+pub mod optimizer;
+pub mod params;
+pub mod registry;
+pub mod report;
+pub mod results;
+pub mod runner;
+pub mod stats;
+pub mod suite;
+
+pub use error::{Error, Result};

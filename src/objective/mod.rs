@@ -1,0 +1,127 @@
+//! Black-box objectives. An objective knows its domain and how to evaluate points; it knows
+//! nothing of optimizers, budgets or files.
+
+pub mod functions;
+
+use rand::{Rng, RngExt};
+
+/// A box-shaped search domain: `lower[i] <= x[i] <= upper[i]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Bounds {
+    lower: Vec<f64>,
+    upper: Vec<f64>,
+}
+
+impl Bounds {
+    /// Checked constructor: same length, at least one dimension, finite, lower < upper.
+    pub fn new(lower: Vec<f64>, upper: Vec<f64>) -> Result<Self, String> {
+        if lower.len() != upper.len() {
+            return Err(format!(
+                "lower has {} entries but upper has {}",
+                lower.len(),
+                upper.len()
+            ));
+        }
+        if lower.is_empty() {
+            return Err("dimension must be at least 1".into());
+        }
+        for (i, (&l, &u)) in lower.iter().zip(&upper).enumerate() {
+            if !l.is_finite() || !u.is_finite() {
+                return Err(format!("bound {i} is not finite ({l}, {u})"));
+            }
+            if l >= u {
+                return Err(format!(
+                    "lower bound {l} is not below upper bound {u} (dimension {i})"
+                ));
+            }
+        }
+        Ok(Bounds { lower, upper })
+    }
+
+    /// The same interval `[lo, hi]` in every one of `dim` dimensions.
+    pub fn uniform(dim: usize, lo: f64, hi: f64) -> Result<Self, String> {
+        Self::new(vec![lo; dim], vec![hi; dim])
+    }
+
+    pub fn dim(&self) -> usize {
+        self.lower.len()
+    }
+
+    pub fn lower(&self) -> &[f64] {
+        &self.lower
+    }
+
+    pub fn upper(&self) -> &[f64] {
+        &self.upper
+    }
+
+    /// Width of the domain in dimension `i`.
+    pub fn width(&self, i: usize) -> f64 {
+        self.upper[i] - self.lower[i]
+    }
+
+    /// Whether every coordinate of `x` lies inside the box.
+    pub fn contains(&self, x: &[f64]) -> bool {
+        x.len() == self.dim()
+            && x.iter()
+                .zip(self.lower.iter().zip(&self.upper))
+                .all(|(v, (l, u))| *l <= *v && *v <= *u)
+    }
+
+    /// Projects `x` onto the box coordinate by coordinate.
+    pub fn clamp(&self, x: &mut [f64]) {
+        for (v, (l, u)) in x.iter_mut().zip(self.lower.iter().zip(&self.upper)) {
+            *v = v.clamp(*l, *u);
+        }
+    }
+
+    /// Fills `x` with a point drawn uniformly from the box.
+    pub fn sample(&self, rng: &mut impl Rng, x: &mut [f64]) {
+        for (i, v) in x.iter_mut().enumerate() {
+            *v = self.sample_coord(rng, i);
+        }
+    }
+
+    /// A uniform draw of coordinate `i`.
+    pub fn sample_coord(&self, rng: &mut impl Rng, i: usize) -> f64 {
+        let u: f64 = rng.random();
+        // lower + u*width can round up to exactly `upper` but never beyond it.
+        (self.lower[i] + u * self.width(i)).min(self.upper[i])
+    }
+}
+
+/// A black-box function to minimise over a box.
+///
+/// Points are slices of length [`Objective::dim`]. Batches are flat row-major matrices
+/// (`n * dim` values) so that an objective can evaluate a whole population at once, for
+/// example with SIMD over individuals.
+pub trait Objective: Send + Sync {
+    /// Short name of the function family, e.g. `griewank`.
+    fn name(&self) -> &str;
+
+    /// The search domain.
+    fn bounds(&self) -> &Bounds;
+
+    /// Number of decision variables.
+    fn dim(&self) -> usize {
+        self.bounds().dim()
+    }
+
+    /// Value at one point. May return NaN or infinity; the harness treats both as +inf.
+    fn evaluate(&self, x: &[f64]) -> f64;
+
+    /// Values of `out.len()` points stored row-major in `points`.
+    fn evaluate_batch(&self, points: &[f64], out: &mut [f64]) {
+        let d = self.dim();
+        debug_assert_eq!(points.len(), out.len() * d);
+        for (p, o) in points.chunks_exact(d).zip(out.iter_mut()) {
+            *o = self.evaluate(p);
+        }
+    }
+
+    /// The global minimum value inside [`Objective::bounds`], where it is known, so results
+    /// can report the error to the optimum.
+    fn optimum(&self) -> Option<f64> {
+        None
+    }
+}

@@ -1,0 +1,30 @@
+//! Optimizers. An optimizer transforms its own state one iteration at a time and spends
+//! evaluations only through the [`Evaluator`] it is handed; the harness owns the loop, the
+//! budget, the trace and the random streams. Optimizers know nothing of files or suites.
+
+pub mod ga;
+pub mod msga;
+pub mod operators;
+pub mod pso;
+pub mod random_search;
+
+use crate::harness::{Evaluator, TrialSeed};
+use crate::objective::Bounds;
+use std::fmt;
+
+/// The running state of one optimizer in one trial.
+pub trait Optimizer: Send {
+    /// One iteration (generation). Must spend at least one evaluation unless
+    /// [`Evaluator::done`]; stopping is the harness's decision, not the optimizer's.
+    fn step(&mut self, ev: &mut Evaluator);
+}
+
+/// A validated optimizer configuration: the recipe for a fresh [`Optimizer`] per trial.
+pub trait OptimizerConfig: Send + Sync + fmt::Debug {
+    /// Evaluations spent per iteration, to translate budgets into iterations.
+    fn batch_size(&self) -> usize;
+
+    /// A new optimizer for one trial over `bounds`, drawing every random number from
+    /// `seed`'s streams. `budget` lets schedules (PSO's inertia) span the whole run.
+    fn start(&self, bounds: &Bounds, budget: u64, seed: &TrialSeed) -> Box<dyn Optimizer>;
+}

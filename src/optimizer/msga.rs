@@ -1,0 +1,410 @@
+//! Membrane-structure genetic algorithm (MSGA), seed sections 2.4.2 and 3.1.1.
+//!
+//! # Structure (seed Fig. 3.3)
+//! Five membranes: the skin (0) contains membranes 1, 2 and 3; membrane 3 contains 4. The
+//! elementary membranes are 1, 2 and 4, as in the seed. Each membrane holds `objects`
+//! objects (40; 200 in all) and evolves them with its own rules and its own ChaCha stream
+//! (stream `1 + membrane`).
+//!
+//! # Evolution rules, one step per round
+//! 1. *Selection* (eq. 3.4): a mating pool of `objects` parents drawn by roulette wheel
+//!    ([`Roulette`], fitness-proportional with linear windowing).
+//! 2. *Crossover* (eq. 3.6): consecutive pool pairs, with probability `pc`, become
+//!    `a V1 + (1-a) V2` and `(1-a) V1 + a V2`, `a ~ U(0, 1)`.
+//! 3. *Mutation* (eq. 3.5): each gene, with probability `pm`, is replaced by a uniform draw
+//!    from its interval.
+//! 4. *Shift* (eq. 3.7): with probability `ps` an object swaps two of its genes (clipped to
+//!    the destination's interval when the bounds differ).
+//! 5. The candidates are evaluated, and the seed's replacement rule of eq. 3.4 is applied
+//!    slot by slot: object `i` is replaced by candidate `i` when the candidate is at least
+//!    as good (`f_n <= f_i`), so a membrane never loses its best object.
+//!
+//! # Communication rule
+//! After each evolution step every membrane sends copies of its best `exchange` share
+//! (30 %, 12 objects) to each neighbour in the tree (its parent and its children) over a
+//! channel. A receiver takes the incoming objects in a fixed order (parent first, then
+//! children by label); each one that is not already present and beats the receiver's
+//! current worst object replaces that worst object. The seed does not say who receives
+//! the best objects; exchanging along the tree edges in both directions lets good objects
+//! reach the skin, which the seed names as the output, while inner membranes keep evolving
+//! their own lines. The harness records the best of every evaluation, so the reported
+//! result is the best object found anywhere, which the skin holds one or two rounds later.
+//!
+//! # Threads and determinism
+//! With `threads = true` each membrane runs on its own OS thread: the coordinator grants
+//! each membrane its evaluations for the round, the membrane evolves and evaluates on its
+//! thread, reports back, and exchanges migrants with its neighbours directly over channels.
+//! Rounds are synchronous, each membrane draws only from its own stream, receivers read
+//! their neighbours in a fixed order, and the coordinator commits the evaluations in
+//! membrane order, so results are bit-identical to the single-thread driver
+//! (`threads = false`) and independent of scheduling.
+
+use super::operators::{Mutation, Roulette, arithmetic_crossover, ranking};
+use super::{Optimizer, OptimizerConfig};
+use crate::harness::{Evaluated, Evaluator, Grant, TrialSeed};
+use crate::objective::Bounds;
+use crossbeam_channel::{Receiver, Sender, unbounded};
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+use std::thread::JoinHandle;
+
+/// Parent of each membrane in the seed's structure (Fig. 3.3); `None` is the skin.
+pub const SEED_STRUCTURE: [Option<usize>; 5] = [None, Some(0), Some(0), Some(0), Some(3)];
+
+/// MSGA settings; defaults are the seed's Table 3.1.
+#[derive(Debug, Clone)]
+pub struct MsgaConfig {
+    /// Parent of each membrane (`None` for the skin).
+    pub structure: Vec<Option<usize>>,
+    /// Objects per membrane.
+    pub objects: usize,
+    pub pm: f64,
+    pub pc: f64,
+    pub ps: f64,
+    /// Share of a membrane's objects sent to each neighbour after every evolution step.
+    pub exchange: f64,
+    /// One OS thread per membrane (true) or all membranes in the calling thread (false).
+    pub threads: bool,
+}
+
+impl Default for MsgaConfig {
+    fn default() -> Self {
+        MsgaConfig {
+            structure: SEED_STRUCTURE.to_vec(),
+            objects: 40,
+            pm: 0.1,
+            pc: 0.9,
+            ps: 0.05,
+            exchange: 0.3,
+            threads: true,
+        }
+    }
+}
+
+impl MsgaConfig {
+    /// Neighbours of each membrane: parent first, then children in label order.
+    fn neighbours(&self) -> Vec<Vec<usize>> {
+        let m = self.structure.len();
+        (0..m)
+            .map(|i| {
+                let mut v: Vec<usize> = self.structure[i].into_iter().collect();
+                v.extend((0..m).filter(|&j| self.structure[j] == Some(i)));
+                v
+            })
+            .collect()
+    }
+
+    /// Number of migrants a membrane sends to each neighbour.
+    fn migrant_count(&self) -> usize {
+        ((self.exchange * self.objects as f64).ceil() as usize).min(self.objects)
+    }
+}
+
+impl OptimizerConfig for MsgaConfig {
+    fn batch_size(&self) -> usize {
+        self.objects * self.structure.len()
+    }
+
+    fn start(&self, bounds: &Bounds, _budget: u64, seed: &TrialSeed) -> Box<dyn Optimizer> {
+        let membranes: Vec<Membrane> = (0..self.structure.len())
+            .map(|id| Membrane::new(self, bounds, seed.rng(1 + id as u64)))
+            .collect();
+        if self.threads {
+            Box::new(Threaded::spawn(membranes, self.neighbours(), self.objects))
+        } else {
+            Box::new(Sequential {
+                membranes,
+                neighbours: self.neighbours(),
+                values: vec![0.0; self.objects],
+            })
+        }
+    }
+}
+
+/// Objects sent from one membrane to a neighbour, with their values.
+#[derive(Debug, Clone)]
+struct Migrants {
+    points: Vec<f64>,
+    values: Vec<f64>,
+}
+
+/// One membrane: a region with its objects, its rules and its random stream.
+struct Membrane {
+    bounds: Bounds,
+    objects: usize,
+    pm: f64,
+    pc: f64,
+    ps: f64,
+    migrants: usize,
+    rng: ChaCha8Rng,
+    pop: Vec<f64>,
+    fit: Vec<f64>,
+    cand: Vec<f64>,
+    wheel: Roulette,
+    initialized: bool,
+}
+
+impl Membrane {
+    fn new(cfg: &MsgaConfig, bounds: &Bounds, rng: ChaCha8Rng) -> Self {
+        let d = bounds.dim();
+        Membrane {
+            bounds: bounds.clone(),
+            objects: cfg.objects,
+            pm: cfg.pm,
+            pc: cfg.pc,
+            ps: cfg.ps,
+            migrants: cfg.migrant_count(),
+            rng,
+            pop: vec![0.0; cfg.objects * d],
+            fit: vec![f64::INFINITY; cfg.objects],
+            cand: vec![0.0; cfg.objects * d],
+            wheel: Roulette::default(),
+            initialized: false,
+        }
+    }
+
+    /// The candidates of this round: the initial objects, then offspring of the rules.
+    fn propose(&mut self) -> &[f64] {
+        let d = self.bounds.dim();
+        if !self.initialized {
+            for x in self.cand.chunks_exact_mut(d) {
+                self.bounds.sample(&mut self.rng, x);
+            }
+            return &self.cand;
+        }
+        // Selection: roulette mating pool.
+        self.wheel.rebuild(&self.fit);
+        for i in 0..self.objects {
+            let p = self.wheel.pick(&mut self.rng);
+            self.cand[i * d..(i + 1) * d].copy_from_slice(&self.pop[p * d..(p + 1) * d]);
+        }
+        // Crossover of consecutive pairs.
+        let (mut c1, mut c2) = (vec![0.0; d], vec![0.0; d]);
+        for pair in self.cand.chunks_exact_mut(2 * d) {
+            if self.rng.random::<f64>() < self.pc {
+                let a: f64 = self.rng.random();
+                let (p1, p2) = pair.split_at(d);
+                arithmetic_crossover(a, p1, p2, &mut c1, &mut c2);
+                pair[..d].copy_from_slice(&c1);
+                pair[d..].copy_from_slice(&c2);
+            }
+        }
+        for x in self.cand.chunks_exact_mut(d) {
+            // Mutation.
+            Mutation::Uniform.apply(x, &self.bounds, self.pm, &mut self.rng);
+            // Shift: swap two genes.
+            if d >= 2 && self.rng.random::<f64>() < self.ps {
+                let a = self.rng.random_range(0..d);
+                let b = (a + 1 + self.rng.random_range(0..d - 1)) % d;
+                x.swap(a, b);
+                self.bounds.clamp(x);
+            }
+        }
+        &self.cand
+    }
+
+    /// Applies the replacement rule with the candidates' values.
+    fn accept(&mut self, values: &[f64]) {
+        let d = self.bounds.dim();
+        if !self.initialized {
+            self.pop.copy_from_slice(&self.cand);
+            self.fit.copy_from_slice(values);
+            self.initialized = true;
+            return;
+        }
+        for (i, &v) in values.iter().enumerate() {
+            if v <= self.fit[i] {
+                self.fit[i] = v;
+                self.pop[i * d..(i + 1) * d].copy_from_slice(&self.cand[i * d..(i + 1) * d]);
+            }
+        }
+    }
+
+    /// Copies of the best objects, to send to a neighbour.
+    fn migrants(&self) -> Migrants {
+        let d = self.bounds.dim();
+        let mut m = Migrants {
+            points: Vec::with_capacity(self.migrants * d),
+            values: Vec::with_capacity(self.migrants),
+        };
+        for &i in ranking(&self.fit).iter().take(self.migrants) {
+            m.points.extend_from_slice(&self.pop[i * d..(i + 1) * d]);
+            m.values.push(self.fit[i]);
+        }
+        m
+    }
+
+    /// Takes in migrants: each new one that beats the current worst object replaces it.
+    fn receive(&mut self, incoming: &[Migrants]) {
+        let d = self.bounds.dim();
+        for batch in incoming {
+            for (x, &v) in batch.points.chunks_exact(d).zip(&batch.values) {
+                let present = self.pop.chunks_exact(d).any(|p| p == x);
+                if present {
+                    continue;
+                }
+                let worst = *ranking(&self.fit).last().expect("membrane has objects");
+                if v < self.fit[worst] {
+                    self.fit[worst] = v;
+                    self.pop[worst * d..(worst + 1) * d].copy_from_slice(x);
+                }
+            }
+        }
+    }
+}
+
+/// All membranes in the calling thread, in label order.
+struct Sequential {
+    membranes: Vec<Membrane>,
+    neighbours: Vec<Vec<usize>>,
+    values: Vec<f64>,
+}
+
+impl Optimizer for Sequential {
+    fn step(&mut self, ev: &mut Evaluator) {
+        let evolution = self.membranes[0].initialized;
+        for m in &mut self.membranes {
+            let cand = m.propose();
+            ev.evaluate_batch(cand, &mut self.values);
+            m.accept(&self.values);
+        }
+        if evolution {
+            let out: Vec<Migrants> = self.membranes.iter().map(Membrane::migrants).collect();
+            for (m, nb) in self.membranes.iter_mut().zip(&self.neighbours) {
+                let incoming: Vec<Migrants> = nb.iter().map(|&j| out[j].clone()).collect();
+                m.receive(&incoming);
+            }
+        }
+    }
+}
+
+/// One OS thread per membrane; the coordinator only grants and commits evaluations.
+struct Threaded {
+    commands: Vec<Sender<Grant>>,
+    reports: Vec<Receiver<Evaluated>>,
+    handles: Vec<JoinHandle<()>>,
+    objects: usize,
+}
+
+impl Threaded {
+    fn spawn(membranes: Vec<Membrane>, neighbours: Vec<Vec<usize>>, objects: usize) -> Self {
+        let m = membranes.len();
+        // One channel per directed edge of the membrane tree.
+        let mut inbox: Vec<Vec<Option<Receiver<Migrants>>>> =
+            (0..m).map(|_| (0..m).map(|_| None).collect()).collect();
+        let mut outbox: Vec<Vec<Sender<Migrants>>> = (0..m).map(|_| Vec::new()).collect();
+        for (i, nb) in neighbours.iter().enumerate() {
+            for &j in nb {
+                let (tx, rx) = unbounded();
+                outbox[i].push(tx);
+                inbox[j][i] = Some(rx);
+            }
+        }
+        let mut commands = Vec::with_capacity(m);
+        let mut reports = Vec::with_capacity(m);
+        let mut handles = Vec::with_capacity(m);
+        for (id, mut membrane) in membranes.into_iter().enumerate() {
+            let (cmd_tx, cmd_rx) = unbounded::<Grant>();
+            let (rep_tx, rep_rx) = unbounded::<Evaluated>();
+            let to: Vec<Sender<Migrants>> = std::mem::take(&mut outbox[id]);
+            let from: Vec<Receiver<Migrants>> = neighbours[id]
+                .iter()
+                .map(|&j| inbox[id][j].take().expect("edge channel"))
+                .collect();
+            let handle = std::thread::Builder::new()
+                .name(format!("msga-membrane-{id}"))
+                .spawn(move || {
+                    while let Ok(grant) = cmd_rx.recv() {
+                        let evolution = membrane.initialized;
+                        let evaluated = grant.evaluate(membrane.propose());
+                        membrane.accept(evaluated.values());
+                        if rep_tx.send(evaluated).is_err() {
+                            return;
+                        }
+                        if evolution {
+                            let out = membrane.migrants();
+                            for tx in &to {
+                                tx.send(out.clone()).expect("neighbour membrane stopped");
+                            }
+                            let incoming: Vec<Migrants> = from
+                                .iter()
+                                .map(|rx| rx.recv().expect("neighbour membrane stopped"))
+                                .collect();
+                            membrane.receive(&incoming);
+                        }
+                    }
+                })
+                .expect("spawn membrane thread");
+            commands.push(cmd_tx);
+            reports.push(rep_rx);
+            handles.push(handle);
+        }
+        Threaded {
+            commands,
+            reports,
+            handles,
+            objects,
+        }
+    }
+}
+
+impl Optimizer for Threaded {
+    fn step(&mut self, ev: &mut Evaluator) {
+        for tx in &self.commands {
+            tx.send(ev.grant(self.objects))
+                .expect("membrane thread stopped");
+        }
+        for rx in &self.reports {
+            let evaluated = rx.recv().expect("membrane thread panicked");
+            ev.commit(evaluated);
+        }
+    }
+}
+
+impl Drop for Threaded {
+    fn drop(&mut self) {
+        // Closing the command channels ends every membrane loop after its current round.
+        self.commands.clear();
+        for h in self.handles.drain(..) {
+            let _ = h.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seed_structure_has_elementary_membranes_1_2_4() {
+        let cfg = MsgaConfig::default();
+        let nb = cfg.neighbours();
+        assert_eq!(nb, vec![vec![1, 2, 3], vec![0], vec![0], vec![0, 4], vec![3]]);
+        let elementary: Vec<usize> = (0..5)
+            .filter(|&i| !cfg.structure.contains(&Some(i)))
+            .collect();
+        assert_eq!(elementary, vec![1, 2, 4]);
+        assert_eq!(cfg.migrant_count(), 12);
+        assert_eq!(cfg.batch_size(), 200);
+    }
+
+    #[test]
+    fn receive_replaces_worst_and_skips_duplicates() {
+        let cfg = MsgaConfig {
+            objects: 3,
+            ..MsgaConfig::default()
+        };
+        let b = Bounds::uniform(1, 0.0, 10.0).unwrap();
+        let mut m = Membrane::new(&cfg, &b, TrialSeed::from_u64(0).rng(1));
+        m.pop = vec![1.0, 2.0, 3.0];
+        m.fit = vec![1.0, 2.0, 3.0];
+        m.initialized = true;
+        m.receive(&[Migrants {
+            points: vec![1.0, 0.5, 9.0],
+            values: vec![1.0, 0.5, 9.0],
+        }]);
+        // 1.0 is a duplicate, 0.5 replaces the worst (3.0), 9.0 beats nothing.
+        assert_eq!(m.pop, vec![1.0, 2.0, 0.5]);
+        assert_eq!(m.fit, vec![1.0, 2.0, 0.5]);
+    }
+}

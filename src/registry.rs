@@ -1,0 +1,306 @@
+//! The objective and optimizer kinds a suite may name, with their parameter tables.
+
+use crate::error::Error;
+use crate::objective::functions::{Function, TestFunction};
+use crate::objective::{Bounds, Objective};
+use crate::optimizer::OptimizerConfig;
+use crate::optimizer::ga::GaConfig;
+use crate::optimizer::msga::MsgaConfig;
+use crate::optimizer::operators::Mutation;
+use crate::optimizer::pso::PsoConfig;
+use crate::optimizer::random_search::RandomSearchConfig;
+use crate::params::{Default as D, Kind, Params, Spec, probability};
+use std::sync::Arc;
+
+/// An objective family a suite can name.
+pub struct ObjectiveKind {
+    pub name: &'static str,
+    pub help: &'static str,
+    pub params: &'static [Spec],
+    pub build: fn(&Params) -> Result<Arc<dyn Objective>, Error>,
+}
+
+/// An optimizer a suite can name.
+pub struct OptimizerKind {
+    pub name: &'static str,
+    pub help: &'static str,
+    pub params: &'static [Spec],
+    pub build: fn(&Params) -> Result<Arc<dyn OptimizerConfig>, Error>,
+}
+
+const POSITIVE_INT: Kind = Kind::Int {
+    min: 1,
+    max: i64::MAX,
+};
+
+const FUNCTION_PARAMS: &[Spec] = &[
+    Spec {
+        name: "dim",
+        kind: POSITIVE_INT,
+        default: D::Required,
+        help: "number of variables",
+    },
+    Spec {
+        name: "lower",
+        kind: Kind::Float {
+            min: f64::NEG_INFINITY,
+            max: f64::INFINITY,
+        },
+        default: D::Derived("the function's customary domain"),
+        help: "lower bound of every variable",
+    },
+    Spec {
+        name: "upper",
+        kind: Kind::Float {
+            min: f64::NEG_INFINITY,
+            max: f64::INFINITY,
+        },
+        default: D::Derived("the function's customary domain"),
+        help: "upper bound of every variable",
+    },
+];
+
+fn build_function(kind: TestFunction, p: &Params) -> Result<Arc<dyn Objective>, Error> {
+    let (lo, hi) = kind.default_domain();
+    let lower = p.opt_float("lower").unwrap_or(lo);
+    let upper = p.opt_float("upper").unwrap_or(hi);
+    let bounds = Bounds::uniform(p.usize("dim"), lower, upper).map_err(|e| p.error("lower", e))?;
+    let f = Function::new(kind, bounds).map_err(|e| p.error("dim", e))?;
+    Ok(Arc::new(f))
+}
+
+macro_rules! function_kind {
+    ($kind:expr, $help:expr) => {
+        ObjectiveKind {
+            name: $kind.name(),
+            help: $help,
+            params: FUNCTION_PARAMS,
+            build: |p| build_function($kind, p),
+        }
+    };
+}
+
+/// Every objective kind.
+pub fn objective_kinds() -> Vec<ObjectiveKind> {
+    use TestFunction::*;
+    vec![
+        function_kind!(Sphere, Sphere.describe()),
+        function_kind!(Griewank, Griewank.describe()),
+        function_kind!(Schwefel, Schwefel.describe()),
+        function_kind!(Rastrigin, Rastrigin.describe()),
+        function_kind!(Rosenbrock, Rosenbrock.describe()),
+        function_kind!(Ackley, Ackley.describe()),
+    ]
+}
+
+const POPULATION: Spec = Spec {
+    name: "population",
+    kind: Kind::Int {
+        min: 2,
+        max: i64::MAX,
+    },
+    default: D::Int(200),
+    help: "individuals evaluated per generation",
+};
+
+const GA_PARAMS: &[Spec] = &[
+    POPULATION,
+    probability("pc", 0.9, "crossover probability per pair"),
+    probability("pm", 0.1, "mutation probability per gene"),
+    Spec {
+        name: "elite",
+        kind: Kind::Int {
+            min: 0,
+            max: i64::MAX,
+        },
+        default: D::Int(1),
+        help: "best individuals copied unchanged into the next generation",
+    },
+    Spec {
+        name: "mutation",
+        kind: Kind::Choice(&["uniform", "gaussian"]),
+        default: D::Str("uniform"),
+        help: "uniform: redraw the gene in its interval (seed eq. 3.5); gaussian: add noise",
+    },
+    Spec {
+        name: "sigma",
+        kind: Kind::Float {
+            min: f64::MIN_POSITIVE,
+            max: f64::INFINITY,
+        },
+        default: D::Float(0.1),
+        help: "gaussian mutation step as a fraction of the interval width",
+    },
+];
+
+fn build_ga(p: &Params) -> Result<Arc<dyn OptimizerConfig>, Error> {
+    let cfg = GaConfig {
+        population: p.usize("population"),
+        pc: p.float("pc"),
+        pm: p.float("pm"),
+        elite: p.usize("elite"),
+        mutation: match p.str("mutation") {
+            "gaussian" => Mutation::Gaussian {
+                sigma: p.float("sigma"),
+            },
+            _ => Mutation::Uniform,
+        },
+    };
+    if cfg.elite >= cfg.population {
+        return Err(p.error(
+            "elite",
+            format!(
+                "{} must be smaller than the population ({})",
+                cfg.elite, cfg.population
+            ),
+        ));
+    }
+    Ok(Arc::new(cfg))
+}
+
+const COEFF: Kind = Kind::Float {
+    min: 0.0,
+    max: 10.0,
+};
+
+const PSO_PARAMS: &[Spec] = &[
+    Spec {
+        name: "population",
+        kind: POSITIVE_INT,
+        default: D::Int(200),
+        help: "particles in the swarm",
+    },
+    Spec {
+        name: "w_start",
+        kind: Kind::Float { min: 0.0, max: 2.0 },
+        default: D::Float(0.9),
+        help: "inertia weight at the first iteration",
+    },
+    Spec {
+        name: "w_end",
+        kind: Kind::Float { min: 0.0, max: 2.0 },
+        default: D::Float(0.4),
+        help: "inertia weight at the last iteration (equal to w_start for constant)",
+    },
+    Spec {
+        name: "c1",
+        kind: COEFF,
+        default: D::Float(2.0),
+        help: "cognitive acceleration constant (seed: 2)",
+    },
+    Spec {
+        name: "c2",
+        kind: COEFF,
+        default: D::Float(2.0),
+        help: "social acceleration constant (seed: 2)",
+    },
+    Spec {
+        name: "vmax",
+        kind: Kind::Float {
+            min: f64::MIN_POSITIVE,
+            max: 1.0,
+        },
+        default: D::Float(0.2),
+        help: "velocity clamp as a fraction of each interval's width",
+    },
+];
+
+fn build_pso(p: &Params) -> Result<Arc<dyn OptimizerConfig>, Error> {
+    Ok(Arc::new(PsoConfig {
+        swarm: p.usize("population"),
+        w_start: p.float("w_start"),
+        w_end: p.float("w_end"),
+        c1: p.float("c1"),
+        c2: p.float("c2"),
+        vmax: p.float("vmax"),
+    }))
+}
+
+const MSGA_PARAMS: &[Spec] = &[
+    Spec {
+        name: "objects",
+        kind: Kind::Int {
+            min: 2,
+            max: i64::MAX,
+        },
+        default: D::Int(40),
+        help: "objects per membrane (5 membranes, seed Fig. 3.3)",
+    },
+    probability("pm", 0.1, "mutation probability per gene (seed Table 3.1)"),
+    probability("pc", 0.9, "crossover probability per pair (seed Table 3.1)"),
+    probability("ps", 0.05, "shift probability per object (seed Table 3.1)"),
+    probability(
+        "exchange",
+        0.3,
+        "share of best objects sent to each neighbour membrane (seed Table 3.1)",
+    ),
+    Spec {
+        name: "threads",
+        kind: Kind::Bool,
+        default: D::Bool(true),
+        help: "one OS thread per membrane; false runs them in turn (same results)",
+    },
+];
+
+fn build_msga(p: &Params) -> Result<Arc<dyn OptimizerConfig>, Error> {
+    Ok(Arc::new(MsgaConfig {
+        objects: p.usize("objects"),
+        pm: p.float("pm"),
+        pc: p.float("pc"),
+        ps: p.float("ps"),
+        exchange: p.float("exchange"),
+        threads: p.bool("threads"),
+        ..MsgaConfig::default()
+    }))
+}
+
+const RANDOM_PARAMS: &[Spec] = &[Spec {
+    name: "batch",
+    kind: POSITIVE_INT,
+    default: D::Int(200),
+    help: "points drawn per iteration",
+}];
+
+fn build_random(p: &Params) -> Result<Arc<dyn OptimizerConfig>, Error> {
+    Ok(Arc::new(RandomSearchConfig {
+        batch: p.usize("batch"),
+    }))
+}
+
+/// Every optimizer kind.
+pub fn optimizer_kinds() -> Vec<OptimizerKind> {
+    vec![
+        OptimizerKind {
+            name: "ga",
+            help: "real-coded GA: roulette selection, arithmetic crossover, mutation, elitism",
+            params: GA_PARAMS,
+            build: build_ga,
+        },
+        OptimizerKind {
+            name: "pso",
+            help: "particle swarm (seed eq. 3.15/3.16), linearly decreasing inertia",
+            params: PSO_PARAMS,
+            build: build_pso,
+        },
+        OptimizerKind {
+            name: "msga",
+            help: "membrane-structure GA (seed 3.1.1): 5 membranes, one OS thread each",
+            params: MSGA_PARAMS,
+            build: build_msga,
+        },
+        OptimizerKind {
+            name: "random",
+            help: "uniform random search, the floor every method must beat",
+            params: RANDOM_PARAMS,
+            build: build_random,
+        },
+    ]
+}
+
+/// Builds the named optimizer with all defaults (for code outside suites).
+pub fn default_optimizer(name: &str) -> Option<Arc<dyn OptimizerConfig>> {
+    let kinds = optimizer_kinds();
+    let k = kinds.iter().find(|k| k.name == name)?;
+    let p = Params::defaults(k.params, name).ok()?;
+    (k.build)(&p).ok()
+}

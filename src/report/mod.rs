@@ -1,0 +1,4 @@
+//! What optbench shows people: terminal tables now; plots and paper tables build on the
+//! same stored results.
+
+pub mod table;

@@ -1,0 +1,19 @@
+//! The result store: one folder per run with the suite as run, provenance, every trial's
+//! trace, and the summary. Every file is written to a temporary name and renamed, so a
+//! reader never sees half a file.
+//!
+//! ```text
+//! results/<suite>/
+//!   suite.toml        the suite file exactly as read
+//!   provenance.json   tool version, git commit, seed, threads, start/end time, command
+//!   traces.jsonl      one TrialRecord per line, in plan order
+//!   summary.json      per objective x optimizer: finals and their statistics
+//! ```
+
+pub mod atomic;
+pub mod store;
+pub mod summary;
+
+pub use atomic::atomic_write;
+pub use store::{Provenance, read_traces, write_run};
+pub use summary::{CellSummary, Summary, summarize};

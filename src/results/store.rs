@@ -1,0 +1,101 @@
+//! Writing and reading a results folder.
+
+use super::atomic_write;
+use super::summary::{Summary, summarize};
+use crate::error::{Error, Result};
+use crate::harness::TrialRecord;
+use crate::suite::Suite;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Where a run came from, so any number can be traced to the code and settings behind it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Provenance {
+    pub tool: String,
+    pub version: String,
+    /// `git describe`-style commit of the build, with `-dirty` for uncommitted changes.
+    pub git_commit: Option<String>,
+    pub suite_name: String,
+    pub suite_file: String,
+    pub seed: u64,
+    pub trials: usize,
+    pub threads: usize,
+    /// RFC 3339 UTC times.
+    pub started: String,
+    pub finished: String,
+    pub wall_s: f64,
+    /// The command line as given.
+    pub command: Vec<String>,
+    pub os: String,
+    pub arch: String,
+}
+
+impl Provenance {
+    /// Provenance fields known from the build and the environment.
+    pub fn new(suite: &Suite, threads: usize, started: std::time::SystemTime) -> Self {
+        let finished = std::time::SystemTime::now();
+        Provenance {
+            tool: env!("CARGO_PKG_NAME").into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+            git_commit: option_env!("OPTBENCH_GIT_COMMIT")
+                .filter(|s| !s.is_empty())
+                .map(String::from),
+            suite_name: suite.name.clone(),
+            suite_file: suite.path.display().to_string(),
+            seed: suite.seed,
+            trials: suite.trials,
+            threads,
+            started: humantime::format_rfc3339_seconds(started).to_string(),
+            finished: humantime::format_rfc3339_seconds(finished).to_string(),
+            wall_s: finished
+                .duration_since(started)
+                .unwrap_or_default()
+                .as_secs_f64(),
+            command: std::env::args().collect(),
+            os: std::env::consts::OS.into(),
+            arch: std::env::consts::ARCH.into(),
+        }
+    }
+}
+
+fn json<T: Serialize>(v: &T) -> Vec<u8> {
+    let mut s = serde_json::to_vec_pretty(v).expect("serialisable");
+    s.push(b'\n');
+    s
+}
+
+/// Writes a complete results folder and returns the summary.
+pub fn write_run(
+    dir: &Path,
+    suite: &Suite,
+    records: &[TrialRecord],
+    provenance: &Provenance,
+) -> Result<Summary> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(format!("creating {}", dir.display()), e))?;
+    let summary = summarize(&suite.name, suite.seed, records);
+    atomic_write(&dir.join("suite.toml"), suite.text.as_bytes())?;
+    let mut lines = Vec::new();
+    for r in records {
+        serde_json::to_writer(&mut lines, r).expect("serialisable");
+        lines.push(b'\n');
+    }
+    atomic_write(&dir.join("traces.jsonl"), &lines)?;
+    atomic_write(&dir.join("summary.json"), &json(&summary))?;
+    atomic_write(&dir.join("provenance.json"), &json(provenance))?;
+    Ok(summary)
+}
+
+/// Reads `traces.jsonl` from a results folder.
+pub fn read_traces(dir: &Path) -> Result<Vec<TrialRecord>> {
+    let path = dir.join("traces.jsonl");
+    let text = std::fs::read_to_string(&path)
+        .map_err(|e| Error::Input(format!("{}: cannot read: {e}", path.display())))?;
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| {
+            serde_json::from_str(l)
+                .map_err(|e| Error::at(&path, i + 1, format!("not a trial record: {e}")))
+        })
+        .collect()
+}

@@ -1,0 +1,88 @@
+//! `summary.json`: per objective x optimizer, the final best value of every trial and their
+//! statistics. Scripts read this file; its fields are a stable interface.
+
+use crate::harness::TrialRecord;
+use crate::stats::describe;
+use serde::{Deserialize, Serialize};
+
+/// Summary of one objective x optimizer cell.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CellSummary {
+    pub objective: String,
+    pub optimizer: String,
+    /// Final best value of every trial, in trial order.
+    pub finals: Vec<f64>,
+    pub median: f64,
+    pub mean: f64,
+    /// Sample standard deviation.
+    pub std: f64,
+    pub min: f64,
+    pub max: f64,
+    /// First and third quartiles (type 7).
+    pub q1: f64,
+    pub q3: f64,
+    /// Evaluations spent, summed over the trials (exact).
+    pub evaluations: u64,
+    /// Wall-clock seconds, summed over the trials.
+    pub wall_s: f64,
+    pub trials: usize,
+    /// Budget per trial.
+    pub budget: u64,
+    /// Known optimum of the objective, if any (finals minus this are errors).
+    pub optimum: Option<f64>,
+    /// Evaluations that returned NaN or an infinity, summed over the trials.
+    pub nonfinite: u64,
+}
+
+/// The whole `summary.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    pub suite: String,
+    pub seed: u64,
+    pub results: Vec<CellSummary>,
+}
+
+/// Groups records (in plan order) into cells, keeping first-appearance order.
+pub fn summarize(suite: &str, seed: u64, records: &[TrialRecord]) -> Summary {
+    let mut cells: Vec<(String, String, Vec<&TrialRecord>)> = Vec::new();
+    for r in records {
+        match cells
+            .iter_mut()
+            .find(|(o, p, _)| *o == r.objective && *p == r.optimizer)
+        {
+            Some(c) => c.2.push(r),
+            None => cells.push((r.objective.clone(), r.optimizer.clone(), vec![r])),
+        }
+    }
+    let results = cells
+        .into_iter()
+        .map(|(objective, optimizer, mut rs)| {
+            rs.sort_by_key(|r| r.trial);
+            let finals: Vec<f64> = rs.iter().map(|r| r.best).collect();
+            let d = describe(&finals);
+            CellSummary {
+                objective,
+                optimizer,
+                median: d.median,
+                mean: d.mean,
+                std: d.std,
+                min: d.min,
+                max: d.max,
+                q1: d.q1,
+                q3: d.q3,
+                evaluations: rs.iter().map(|r| r.evaluations).sum(),
+                wall_s: rs.iter().map(|r| r.wall_s).sum(),
+                trials: rs.len(),
+                budget: rs[0].budget,
+                optimum: rs[0].optimum,
+                nonfinite: rs.iter().map(|r| r.nonfinite).sum(),
+                finals,
+            }
+        })
+        .collect();
+    Summary {
+        suite: suite.to_string(),
+        seed,
+        results,
+    }
+}

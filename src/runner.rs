@@ -1,0 +1,63 @@
+//! Runs a suite's plan: every trial in parallel on a rayon pool, results in plan order, so
+//! the output does not depend on the number of threads.
+
+use crate::error::{Error, Result};
+use crate::harness::{TrialRecord, TrialSpec, run_trial};
+use crate::suite::Suite;
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use std::sync::Arc;
+
+/// How to run.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// Worker threads for trials (None: one per core).
+    pub threads: Option<usize>,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+/// Runs every trial of `suite`; returns the records in plan order and the thread count.
+pub fn run_suite(suite: &Suite, opts: &RunOptions) -> Result<(Vec<TrialRecord>, usize)> {
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = opts.threads {
+        builder = builder.num_threads(n);
+    }
+    let pool = builder
+        .build()
+        .map_err(|e| Error::Input(format!("cannot start {:?} threads: {e}", opts.threads)))?;
+    let plan = suite.plan();
+    let bar = if opts.progress {
+        let bar = ProgressBar::new(plan.len() as u64);
+        bar.set_style(
+            ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} trials ({eta} left) {msg}")
+                .expect("static template")
+                .progress_chars("=> "),
+        );
+        bar
+    } else {
+        ProgressBar::hidden()
+    };
+    let records = pool.install(|| {
+        plan.par_iter()
+            .map(|t| {
+                let obj = &suite.objectives[t.objective];
+                let opt = &suite.optimizers[t.optimizer];
+                let record = run_trial(TrialSpec {
+                    objective_id: &obj.id,
+                    optimizer_id: &opt.id,
+                    trial: t.trial,
+                    objective: Arc::clone(&obj.objective),
+                    optimizer: opt.config.as_ref(),
+                    budget: obj.budget,
+                    stop_value: obj.stop_value(),
+                    seed: suite.seed_of(t),
+                });
+                bar.inc(1);
+                record
+            })
+            .collect::<Vec<_>>()
+    });
+    bar.finish_and_clear();
+    Ok((records, pool.current_num_threads()))
+}

@@ -1,0 +1,444 @@
+//! Suites: a TOML file naming objectives, optimizers, seed, trials and budget. Loading a
+//! suite validates everything (kinds, parameters, ranges) before any trial runs, with
+//! errors that name the file, the line and the key.
+//!
+//! ```toml
+//! name = "functions"      # results go to results/<name>/
+//! seed = 2013             # every random stream derives from it
+//! trials = 30             # seeded repeats of every objective x optimizer
+//! budget = 40000          # function evaluations per trial
+//! targets = [1e-2, 1e-4]  # optional: error-to-optimum levels for fixed-target views
+//! stop_at = 1e-8          # optional: end a trial once its error reaches this
+//!
+//! [[objective]]
+//! kind = "griewank"       # see `optbench list`
+//! id = "griewank-2d"      # optional name in results (default: kind-<dim>d)
+//! dim = 2
+//! budget = 40000          # optional per-objective override (also targets, stop_at)
+//!
+//! [[optimizer]]
+//! kind = "msga"
+//! id = "MSGA"             # optional name in results (default: the kind)
+//! objects = 40
+//! ```
+//!
+//! Errors are measured to the objective's known optimum, or to 0 where none is known (cost
+//! functions), so `targets` and `stop_at` mean the same thing for both.
+
+use crate::error::{Error, Result};
+use crate::harness::TrialSeed;
+use crate::objective::Objective;
+use crate::optimizer::OptimizerConfig;
+use crate::params::{Origin, Params};
+use crate::registry::{objective_kinds, optimizer_kinds};
+use serde::Deserialize;
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use toml::Spanned;
+
+type RawEntry = BTreeMap<String, Spanned<toml::Value>>;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSuite {
+    name: Spanned<String>,
+    #[serde(default)]
+    description: Option<String>,
+    seed: Spanned<i64>,
+    trials: Spanned<i64>,
+    budget: Spanned<i64>,
+    #[serde(default)]
+    targets: Option<Spanned<Vec<f64>>>,
+    #[serde(default)]
+    stop_at: Option<Spanned<f64>>,
+    #[serde(rename = "objective", default)]
+    objectives: Vec<Spanned<RawEntry>>,
+    #[serde(rename = "optimizer", default)]
+    optimizers: Vec<Spanned<RawEntry>>,
+}
+
+/// One objective of a suite, built and validated.
+pub struct ObjectiveEntry {
+    /// Name in results.
+    pub id: String,
+    pub kind: &'static str,
+    pub objective: Arc<dyn Objective>,
+    /// Evaluations per trial.
+    pub budget: u64,
+    /// Error levels for fixed-target statistics.
+    pub targets: Vec<f64>,
+    /// Error at which a trial ends early.
+    pub stop_at: Option<f64>,
+    pub params: Params,
+}
+
+impl ObjectiveEntry {
+    /// The value at which a trial stops, from `stop_at` and the known optimum.
+    pub fn stop_value(&self) -> Option<f64> {
+        self.stop_at
+            .map(|s| self.objective.optimum().unwrap_or(0.0) + s)
+    }
+}
+
+/// One optimizer of a suite, validated.
+pub struct OptimizerEntry {
+    pub id: String,
+    pub kind: &'static str,
+    pub config: Arc<dyn OptimizerConfig>,
+    pub params: Params,
+}
+
+/// A validated suite.
+pub struct Suite {
+    pub path: PathBuf,
+    /// The file as read, copied into the results.
+    pub text: String,
+    pub name: String,
+    pub description: Option<String>,
+    pub seed: u64,
+    pub trials: usize,
+    pub objectives: Vec<ObjectiveEntry>,
+    pub optimizers: Vec<OptimizerEntry>,
+}
+
+/// One (objective, optimizer, trial) cell of the plan.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PlannedTrial {
+    pub objective: usize,
+    pub optimizer: usize,
+    pub trial: usize,
+}
+
+fn line_of(text: &str, offset: usize) -> usize {
+    text[..offset.min(text.len())].matches('\n').count() + 1
+}
+
+fn valid_name(s: &str) -> bool {
+    !s.is_empty()
+        && !s.starts_with('.')
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+}
+
+impl Suite {
+    /// Reads and validates the suite at `path`.
+    pub fn load(path: &Path) -> Result<Suite> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| Error::Input(format!("{}: cannot read suite: {e}", path.display())))?;
+        Self::parse(&text, path)
+    }
+
+    /// Validates suite text; `path` is used in messages and provenance.
+    pub fn parse(text: &str, path: &Path) -> Result<Suite> {
+        let at = |offset: usize, msg: String| Error::at(path, line_of(text, offset), msg);
+        let raw: RawSuite = toml::from_str(text).map_err(|e| {
+            let line = e.span().map(|s| line_of(text, s.start)).unwrap_or(1);
+            Error::at(path, line, e.message().trim_end())
+        })?;
+
+        let name = raw.name.get_ref().clone();
+        if !valid_name(&name) {
+            return Err(at(
+                raw.name.span().start,
+                format!("`name` = {name:?}: use letters, digits, '-', '_' or '.' (it names the results folder)"),
+            ));
+        }
+        let seed = u64::try_from(*raw.seed.get_ref())
+            .map_err(|_| at(raw.seed.span().start, "`seed` must be >= 0".into()))?;
+        let trials = *raw.trials.get_ref();
+        if trials < 1 {
+            return Err(at(
+                raw.trials.span().start,
+                format!("`trials` = {trials}: expected an integer >= 1"),
+            ));
+        }
+        let budget = positive_budget(*raw.budget.get_ref())
+            .map_err(|m| at(raw.budget.span().start, m))?;
+        let targets = match &raw.targets {
+            Some(t) => check_targets(t.get_ref()).map_err(|m| at(t.span().start, m))?,
+            None => Vec::new(),
+        };
+        let stop_at = match &raw.stop_at {
+            Some(s) => Some(check_level(*s.get_ref(), "stop_at").map_err(|m| at(s.span().start, m))?),
+            None => None,
+        };
+        if raw.objectives.is_empty() {
+            return Err(Error::at(path, 1, "the suite has no [[objective]]"));
+        }
+        if raw.optimizers.is_empty() {
+            return Err(Error::at(path, 1, "the suite has no [[optimizer]]"));
+        }
+
+        let kinds = objective_kinds();
+        let mut objectives = Vec::new();
+        let mut ids = BTreeSet::new();
+        for entry in &raw.objectives {
+            let line = line_of(text, entry.span().start);
+            let mut fields = entry.get_ref().clone();
+            let kind_name = take_kind(&mut fields, path, text, line, "objective")?;
+            let kind = kinds.iter().find(|k| k.name == kind_name).ok_or_else(|| {
+                Error::at(
+                    path,
+                    line,
+                    format!(
+                        "unknown objective kind `{kind_name}`; valid kinds: {}",
+                        kinds.iter().map(|k| k.name).collect::<Vec<_>>().join(", ")
+                    ),
+                )
+            })?;
+            let id = take_str(&mut fields, "id", path, text)?;
+            let own_budget = take_int(&mut fields, "budget", path, text)?;
+            let own_targets = take_floats(&mut fields, "targets", path, text)?;
+            let own_stop = take_float(&mut fields, "stop_at", path, text)?;
+            let what = format!("objective `{}`", id.as_deref().unwrap_or(kind.name));
+            let params = Params::validate(
+                kind.params,
+                &given(fields, text),
+                Origin {
+                    file: path.to_path_buf(),
+                    line,
+                    what,
+                },
+            )?;
+            let objective = (kind.build)(&params)?;
+            let id = id.unwrap_or_else(|| format!("{}-{}d", kind.name, objective.dim()));
+            check_id(&id, &mut ids, path, line, "objective")?;
+            let budget = match own_budget {
+                Some((b, l)) => positive_budget(b).map_err(|m| Error::at(path, l, m))?,
+                None => budget,
+            };
+            let targets = match own_targets {
+                Some((t, l)) => check_targets(&t).map_err(|m| Error::at(path, l, m))?,
+                None => targets.clone(),
+            };
+            let stop_at = match own_stop {
+                Some((s, l)) => Some(check_level(s, "stop_at").map_err(|m| Error::at(path, l, m))?),
+                None => stop_at,
+            };
+            objectives.push(ObjectiveEntry {
+                id,
+                kind: kind.name,
+                objective,
+                budget,
+                targets,
+                stop_at,
+                params,
+            });
+        }
+
+        let kinds = optimizer_kinds();
+        let mut optimizers = Vec::new();
+        let mut ids = BTreeSet::new();
+        for entry in &raw.optimizers {
+            let line = line_of(text, entry.span().start);
+            let mut fields = entry.get_ref().clone();
+            let kind_name = take_kind(&mut fields, path, text, line, "optimizer")?;
+            let kind = kinds.iter().find(|k| k.name == kind_name).ok_or_else(|| {
+                Error::at(
+                    path,
+                    line,
+                    format!(
+                        "unknown optimizer kind `{kind_name}`; valid kinds: {}",
+                        kinds.iter().map(|k| k.name).collect::<Vec<_>>().join(", ")
+                    ),
+                )
+            })?;
+            let id = take_str(&mut fields, "id", path, text)?.unwrap_or_else(|| kind.name.into());
+            check_id(&id, &mut ids, path, line, "optimizer")?;
+            let params = Params::validate(
+                kind.params,
+                &given(fields, text),
+                Origin {
+                    file: path.to_path_buf(),
+                    line,
+                    what: format!("optimizer `{id}`"),
+                },
+            )?;
+            let config = (kind.build)(&params)?;
+            optimizers.push(OptimizerEntry {
+                id,
+                kind: kind.name,
+                config,
+                params,
+            });
+        }
+
+        Ok(Suite {
+            path: path.to_path_buf(),
+            text: text.to_string(),
+            name,
+            description: raw.description,
+            seed,
+            trials: trials as usize,
+            objectives,
+            optimizers,
+        })
+    }
+
+    /// Every trial, objective-major, in a fixed order.
+    pub fn plan(&self) -> Vec<PlannedTrial> {
+        let mut plan = Vec::new();
+        for objective in 0..self.objectives.len() {
+            for optimizer in 0..self.optimizers.len() {
+                for trial in 0..self.trials {
+                    plan.push(PlannedTrial {
+                        objective,
+                        optimizer,
+                        trial,
+                    });
+                }
+            }
+        }
+        plan
+    }
+
+    /// The random key of a planned trial.
+    pub fn seed_of(&self, t: &PlannedTrial) -> TrialSeed {
+        TrialSeed::derive(
+            self.seed,
+            &self.objectives[t.objective].id,
+            &self.optimizers[t.optimizer].id,
+            t.trial as u64,
+        )
+    }
+}
+
+fn positive_budget(b: i64) -> std::result::Result<u64, String> {
+    if b < 1 {
+        Err(format!("`budget` = {b}: expected a number of evaluations >= 1"))
+    } else {
+        Ok(b as u64)
+    }
+}
+
+fn check_level(x: f64, key: &str) -> std::result::Result<f64, String> {
+    if x.is_finite() && x >= 0.0 {
+        Ok(x)
+    } else {
+        Err(format!("`{key}` = {x}: expected an error level >= 0"))
+    }
+}
+
+fn check_targets(t: &[f64]) -> std::result::Result<Vec<f64>, String> {
+    let mut v = t
+        .iter()
+        .map(|&x| check_level(x, "targets"))
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    v.sort_by(|a, b| b.total_cmp(a));
+    v.dedup();
+    Ok(v)
+}
+
+fn check_id(id: &str, seen: &mut BTreeSet<String>, path: &Path, line: usize, what: &str) -> Result<()> {
+    if !valid_name(id) {
+        return Err(Error::at(
+            path,
+            line,
+            format!("{what} id {id:?}: use letters, digits, '-', '_' or '.'"),
+        ));
+    }
+    if !seen.insert(id.to_string()) {
+        return Err(Error::at(
+            path,
+            line,
+            format!("{what} id `{id}` is used twice; give each entry a distinct `id`"),
+        ));
+    }
+    Ok(())
+}
+
+fn given(fields: RawEntry, text: &str) -> BTreeMap<String, (toml::Value, usize)> {
+    fields
+        .into_iter()
+        .map(|(k, v)| {
+            let line = line_of(text, v.span().start);
+            (k, (v.into_inner(), line))
+        })
+        .collect()
+}
+
+fn take_kind(fields: &mut RawEntry, path: &Path, text: &str, line: usize, what: &str) -> Result<String> {
+    take_str(fields, "kind", path, text)?.ok_or_else(|| {
+        Error::at(
+            path,
+            line,
+            format!("{what} without `kind`; run `optbench list` for the valid kinds"),
+        )
+    })
+}
+
+fn take_str(fields: &mut RawEntry, key: &str, path: &Path, text: &str) -> Result<Option<String>> {
+    match fields.remove(key) {
+        None => Ok(None),
+        Some(v) => match v.get_ref() {
+            toml::Value::String(s) => Ok(Some(s.clone())),
+            other => Err(Error::at(
+                path,
+                line_of(text, v.span().start),
+                format!("`{key}`: expected a string, found {}", other.type_str()),
+            )),
+        },
+    }
+}
+
+fn take_int(fields: &mut RawEntry, key: &str, path: &Path, text: &str) -> Result<Option<(i64, usize)>> {
+    match fields.remove(key) {
+        None => Ok(None),
+        Some(v) => {
+            let line = line_of(text, v.span().start);
+            match v.get_ref() {
+                toml::Value::Integer(i) => Ok(Some((*i, line))),
+                other => Err(Error::at(
+                    path,
+                    line,
+                    format!("`{key}`: expected an integer, found {}", other.type_str()),
+                )),
+            }
+        }
+    }
+}
+
+fn as_float(v: &toml::Value) -> Option<f64> {
+    match v {
+        toml::Value::Float(x) => Some(*x),
+        toml::Value::Integer(i) => Some(*i as f64),
+        _ => None,
+    }
+}
+
+fn take_float(fields: &mut RawEntry, key: &str, path: &Path, text: &str) -> Result<Option<(f64, usize)>> {
+    match fields.remove(key) {
+        None => Ok(None),
+        Some(v) => {
+            let line = line_of(text, v.span().start);
+            as_float(v.get_ref())
+                .map(|x| Some((x, line)))
+                .ok_or_else(|| {
+                    Error::at(
+                        path,
+                        line,
+                        format!("`{key}`: expected a number, found {}", v.get_ref().type_str()),
+                    )
+                })
+        }
+    }
+}
+
+fn take_floats(fields: &mut RawEntry, key: &str, path: &Path, text: &str) -> Result<Option<(Vec<f64>, usize)>> {
+    match fields.remove(key) {
+        None => Ok(None),
+        Some(v) => {
+            let line = line_of(text, v.span().start);
+            let err = || Error::at(path, line, format!("`{key}`: expected an array of numbers"));
+            match v.get_ref() {
+                toml::Value::Array(a) => a
+                    .iter()
+                    .map(|x| as_float(x).ok_or_else(err))
+                    .collect::<Result<Vec<_>>>()
+                    .map(|x| Some((x, line))),
+                _ => Err(err()),
+            }
+        }
+    }
+}
