@@ -186,7 +186,11 @@ impl Params {
                 ));
             };
             let v = spec.check(value).map_err(|msg| {
-                Error::at(&origin.file, *line, format!("{}: `{key}`: {msg}", origin.what))
+                Error::at(
+                    &origin.file,
+                    *line,
+                    format!("{}: `{key}`: {msg}", origin.what),
+                )
             })?;
             values.insert(spec.name, v);
             lines.insert(spec.name, *line);
@@ -394,7 +398,10 @@ mod tests {
         let e = Params::validate(SPECS, &given(&[]), origin())
             .unwrap_err()
             .to_string();
-        assert!(e.starts_with("s.toml:3:") && e.contains("missing parameter `mode`"), "{e}");
+        assert!(
+            e.starts_with("s.toml:3:") && e.contains("missing parameter `mode`"),
+            "{e}"
+        );
 
         let e = Params::validate(
             SPECS,

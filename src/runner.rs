@@ -30,9 +30,11 @@ pub fn run_suite(suite: &Suite, opts: &RunOptions) -> Result<(Vec<TrialRecord>, 
     let bar = if opts.progress {
         let bar = ProgressBar::new(plan.len() as u64);
         bar.set_style(
-            ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} trials ({eta} left) {msg}")
-                .expect("static template")
-                .progress_chars("=> "),
+            ProgressStyle::with_template(
+                "{elapsed_precise} [{bar:40}] {pos}/{len} trials ({eta} left) {msg}",
+            )
+            .expect("static template")
+            .progress_chars("=> "),
         );
         bar
     } else {

@@ -141,7 +141,9 @@ impl Suite {
         if !valid_name(&name) {
             return Err(at(
                 raw.name.span().start,
-                format!("`name` = {name:?}: use letters, digits, '-', '_' or '.' (it names the results folder)"),
+                format!(
+                    "`name` = {name:?}: use letters, digits, '-', '_' or '.' (it names the results folder)"
+                ),
             ));
         }
         let seed = u64::try_from(*raw.seed.get_ref())
@@ -153,14 +155,16 @@ impl Suite {
                 format!("`trials` = {trials}: expected an integer >= 1"),
             ));
         }
-        let budget = positive_budget(*raw.budget.get_ref())
-            .map_err(|m| at(raw.budget.span().start, m))?;
+        let budget =
+            positive_budget(*raw.budget.get_ref()).map_err(|m| at(raw.budget.span().start, m))?;
         let targets = match &raw.targets {
             Some(t) => check_targets(t.get_ref()).map_err(|m| at(t.span().start, m))?,
             None => Vec::new(),
         };
         let stop_at = match &raw.stop_at {
-            Some(s) => Some(check_level(*s.get_ref(), "stop_at").map_err(|m| at(s.span().start, m))?),
+            Some(s) => {
+                Some(check_level(*s.get_ref(), "stop_at").map_err(|m| at(s.span().start, m))?)
+            }
             None => None,
         };
         if raw.objectives.is_empty() {
@@ -306,7 +310,9 @@ impl Suite {
 
 fn positive_budget(b: i64) -> std::result::Result<u64, String> {
     if b < 1 {
-        Err(format!("`budget` = {b}: expected a number of evaluations >= 1"))
+        Err(format!(
+            "`budget` = {b}: expected a number of evaluations >= 1"
+        ))
     } else {
         Ok(b as u64)
     }
@@ -330,7 +336,13 @@ fn check_targets(t: &[f64]) -> std::result::Result<Vec<f64>, String> {
     Ok(v)
 }
 
-fn check_id(id: &str, seen: &mut BTreeSet<String>, path: &Path, line: usize, what: &str) -> Result<()> {
+fn check_id(
+    id: &str,
+    seen: &mut BTreeSet<String>,
+    path: &Path,
+    line: usize,
+    what: &str,
+) -> Result<()> {
     if !valid_name(id) {
         return Err(Error::at(
             path,
@@ -358,7 +370,13 @@ fn given(fields: RawEntry, text: &str) -> BTreeMap<String, (toml::Value, usize)>
         .collect()
 }
 
-fn take_kind(fields: &mut RawEntry, path: &Path, text: &str, line: usize, what: &str) -> Result<String> {
+fn take_kind(
+    fields: &mut RawEntry,
+    path: &Path,
+    text: &str,
+    line: usize,
+    what: &str,
+) -> Result<String> {
     take_str(fields, "kind", path, text)?.ok_or_else(|| {
         Error::at(
             path,
@@ -382,7 +400,12 @@ fn take_str(fields: &mut RawEntry, key: &str, path: &Path, text: &str) -> Result
     }
 }
 
-fn take_int(fields: &mut RawEntry, key: &str, path: &Path, text: &str) -> Result<Option<(i64, usize)>> {
+fn take_int(
+    fields: &mut RawEntry,
+    key: &str,
+    path: &Path,
+    text: &str,
+) -> Result<Option<(i64, usize)>> {
     match fields.remove(key) {
         None => Ok(None),
         Some(v) => {
@@ -407,7 +430,12 @@ fn as_float(v: &toml::Value) -> Option<f64> {
     }
 }
 
-fn take_float(fields: &mut RawEntry, key: &str, path: &Path, text: &str) -> Result<Option<(f64, usize)>> {
+fn take_float(
+    fields: &mut RawEntry,
+    key: &str,
+    path: &Path,
+    text: &str,
+) -> Result<Option<(f64, usize)>> {
     match fields.remove(key) {
         None => Ok(None),
         Some(v) => {
@@ -418,14 +446,22 @@ fn take_float(fields: &mut RawEntry, key: &str, path: &Path, text: &str) -> Resu
                     Error::at(
                         path,
                         line,
-                        format!("`{key}`: expected a number, found {}", v.get_ref().type_str()),
+                        format!(
+                            "`{key}`: expected a number, found {}",
+                            v.get_ref().type_str()
+                        ),
                     )
                 })
         }
     }
 }
 
-fn take_floats(fields: &mut RawEntry, key: &str, path: &Path, text: &str) -> Result<Option<(Vec<f64>, usize)>> {
+fn take_floats(
+    fields: &mut RawEntry,
+    key: &str,
+    path: &Path,
+    text: &str,
+) -> Result<Option<(Vec<f64>, usize)>> {
     match fields.remove(key) {
         None => Ok(None),
         Some(v) => {

@@ -189,7 +189,8 @@ impl Evaluator {
         let d = self.dim();
         assert_eq!(points.len(), out.len() * d, "batch shape");
         let k = (self.remaining() as usize).min(out.len());
-        self.objective.evaluate_batch(&points[..k * d], &mut out[..k]);
+        self.objective
+            .evaluate_batch(&points[..k * d], &mut out[..k]);
         for v in &mut out[..k] {
             *v = sanitize(*v);
         }
@@ -327,7 +328,10 @@ mod tests {
         let t = ev.finish();
         assert!(t.stopped_at_target);
         assert_eq!(t.evaluations, 3);
-        assert_eq!(t.improvements, vec![(1, 9.0), (2, 4.0), (3, 0.010000000000000002)]);
+        assert_eq!(
+            t.improvements,
+            vec![(1, 9.0), (2, 4.0), (3, 0.010000000000000002)]
+        );
         assert_eq!(t.checkpoints.last().unwrap().0, 3);
     }
 

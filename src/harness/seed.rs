@@ -106,8 +106,14 @@ mod tests {
     #[test]
     fn streams_are_independent() {
         let s = TrialSeed::from_u64(5);
-        let a: Vec<u64> = (0..4).map(|_| 0).scan(s.rng(1), |r, _: u64| Some(r.random())).collect();
-        let b: Vec<u64> = (0..4).map(|_| 0).scan(s.rng(2), |r, _: u64| Some(r.random())).collect();
+        let a: Vec<u64> = (0..4)
+            .map(|_| 0)
+            .scan(s.rng(1), |r, _: u64| Some(r.random()))
+            .collect();
+        let b: Vec<u64> = (0..4)
+            .map(|_| 0)
+            .scan(s.rng(2), |r, _: u64| Some(r.random()))
+            .collect();
         assert_ne!(a, b);
     }
 }

@@ -203,7 +203,10 @@ mod tests {
                 let obj = Function::standard(kind, dim).unwrap();
                 let (a, fmin) = kind.argmin_and_min(dim);
                 let v = obj.evaluate(&vec![a; dim]);
-                assert!((v - fmin).abs() < 1e-9 * (1.0 + fmin.abs()), "{kind:?} d={dim}: {v}");
+                assert!(
+                    (v - fmin).abs() < 1e-9 * (1.0 + fmin.abs()),
+                    "{kind:?} d={dim}: {v}"
+                );
                 assert_eq!(obj.optimum(), Some(fmin));
             }
         }

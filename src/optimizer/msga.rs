@@ -243,7 +243,17 @@ impl Membrane {
                 if present {
                     continue;
                 }
-                let worst = *ranking(&self.fit).last().expect("membrane has objects");
+                // The worst object: highest value, the last index among equals (as the
+                // last entry of `ranking`).
+                let worst = (0..self.fit.len())
+                    .reduce(|w, i| {
+                        if self.fit[i].total_cmp(&self.fit[w]).is_ge() {
+                            i
+                        } else {
+                            w
+                        }
+                    })
+                    .expect("membrane has objects");
                 if v < self.fit[worst] {
                     self.fit[worst] = v;
                     self.pop[worst * d..(worst + 1) * d].copy_from_slice(x);
@@ -379,7 +389,10 @@ mod tests {
     fn seed_structure_has_elementary_membranes_1_2_4() {
         let cfg = MsgaConfig::default();
         let nb = cfg.neighbours();
-        assert_eq!(nb, vec![vec![1, 2, 3], vec![0], vec![0], vec![0, 4], vec![3]]);
+        assert_eq!(
+            nb,
+            vec![vec![1, 2, 3], vec![0], vec![0], vec![0, 4], vec![3]]
+        );
         let elementary: Vec<usize> = (0..5)
             .filter(|&i| !cfg.structure.contains(&Some(i)))
             .collect();

@@ -96,14 +96,17 @@ impl Optimizer for Pso {
     fn step(&mut self, ev: &mut Evaluator) {
         let d = self.bounds.dim();
         let n = self.cfg.swarm;
-        let vmax: Vec<f64> = (0..d).map(|j| self.cfg.vmax * self.bounds.width(j)).collect();
+        let vmax: Vec<f64> = (0..d)
+            .map(|j| self.cfg.vmax * self.bounds.width(j))
+            .collect();
         if self.x.is_empty() {
             self.x = vec![0.0; n * d];
             self.v = vec![0.0; n * d];
             for i in 0..n {
-                self.bounds.sample(&mut self.rng, &mut self.x[i * d..(i + 1) * d]);
-                for j in 0..d {
-                    self.v[i * d + j] = (2.0 * self.rng.random::<f64>() - 1.0) * vmax[j];
+                self.bounds
+                    .sample(&mut self.rng, &mut self.x[i * d..(i + 1) * d]);
+                for (v, vm) in self.v[i * d..(i + 1) * d].iter_mut().zip(&vmax) {
+                    *v = (2.0 * self.rng.random::<f64>() - 1.0) * vm;
                 }
             }
             self.f = vec![0.0; n];

@@ -60,8 +60,18 @@ pub fn markdown(header: &[&str], rows: &[Vec<String>], right_align: &[bool]) -> 
 /// The summary as a table: one row per objective x optimizer.
 pub fn summary_table(summary: &Summary) -> String {
     let header = [
-        "objective", "optimizer", "median", "q1", "q3", "mean", "std", "min", "max", "evals/trial",
-        "trials", "wall s",
+        "objective",
+        "optimizer",
+        "median",
+        "q1",
+        "q3",
+        "mean",
+        "std",
+        "min",
+        "max",
+        "evals/trial",
+        "trials",
+        "wall s",
     ];
     let rows: Vec<Vec<String>> = summary
         .results

@@ -71,7 +71,8 @@ pub fn write_run(
     records: &[TrialRecord],
     provenance: &Provenance,
 ) -> Result<Summary> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(format!("creating {}", dir.display()), e))?;
+    std::fs::create_dir_all(dir)
+        .map_err(|e| Error::io(format!("creating {}", dir.display()), e))?;
     let summary = summarize(&suite.name, suite.seed, records);
     atomic_write(&dir.join("suite.toml"), suite.text.as_bytes())?;
     let mut lines = Vec::new();

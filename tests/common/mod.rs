@@ -1,0 +1,62 @@
+//! Shared helpers for integration tests.
+#![allow(dead_code)]
+
+use optbench::objective::functions::{Function, TestFunction};
+use optbench::objective::{Bounds, Objective};
+use std::collections::BTreeSet;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Wraps a test function and records what the harness cannot fake: every real call, every
+/// point outside the box, and the threads that evaluated.
+pub struct Probe {
+    inner: Function,
+    pub calls: AtomicU64,
+    pub out_of_bounds: AtomicU64,
+    pub threads: Mutex<BTreeSet<String>>,
+}
+
+impl Probe {
+    pub fn new(kind: TestFunction, dim: usize) -> Self {
+        Probe {
+            inner: Function::standard(kind, dim).unwrap(),
+            calls: AtomicU64::new(0),
+            out_of_bounds: AtomicU64::new(0),
+            threads: Mutex::new(BTreeSet::new()),
+        }
+    }
+
+    pub fn calls(&self) -> u64 {
+        self.calls.load(Ordering::SeqCst)
+    }
+}
+
+impl Objective for Probe {
+    fn name(&self) -> &str {
+        "probe"
+    }
+    fn bounds(&self) -> &Bounds {
+        self.inner.bounds()
+    }
+    fn evaluate(&self, x: &[f64]) -> f64 {
+        self.calls.fetch_add(1, Ordering::SeqCst);
+        if !self.inner.bounds().contains(x) {
+            self.out_of_bounds.fetch_add(1, Ordering::SeqCst);
+        }
+        let name = std::thread::current()
+            .name()
+            .unwrap_or("unnamed")
+            .to_string();
+        self.threads.lock().unwrap().insert(name);
+        self.inner.evaluate(x)
+    }
+    fn optimum(&self) -> Option<f64> {
+        self.inner.optimum()
+    }
+}
+
+/// A trial record with its wall time removed, for equality checks.
+pub fn without_time(mut r: optbench::harness::TrialRecord) -> optbench::harness::TrialRecord {
+    r.wall_s = 0.0;
+    r
+}

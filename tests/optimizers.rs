@@ -1,0 +1,168 @@
+//! Every optimizer stays in bounds, spends exactly its budget, and MSGA really runs one OS
+//! thread per membrane with results independent of the threading.
+
+mod common;
+
+use common::{Probe, without_time};
+use optbench::harness::{TrialSeed, TrialSpec, run_trial};
+use optbench::objective::Objective;
+use optbench::objective::functions::TestFunction;
+use optbench::optimizer::OptimizerConfig;
+use optbench::optimizer::msga::MsgaConfig;
+use optbench::registry::{default_optimizer, optimizer_kinds};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+
+fn trial(
+    objective: Arc<dyn Objective>,
+    optimizer: &dyn OptimizerConfig,
+    budget: u64,
+    stop_value: Option<f64>,
+    seed: u64,
+) -> optbench::harness::TrialRecord {
+    run_trial(TrialSpec {
+        objective_id: "obj",
+        optimizer_id: "opt",
+        trial: 0,
+        objective,
+        optimizer,
+        budget,
+        stop_value,
+        seed: TrialSeed::from_u64(seed),
+    })
+}
+
+fn all_configs() -> Vec<(String, Arc<dyn OptimizerConfig>)> {
+    let mut v: Vec<(String, Arc<dyn OptimizerConfig>)> = optimizer_kinds()
+        .iter()
+        .map(|k| (k.name.to_string(), default_optimizer(k.name).unwrap()))
+        .collect();
+    v.push((
+        "msga-single-thread".into(),
+        Arc::new(MsgaConfig {
+            threads: false,
+            ..MsgaConfig::default()
+        }),
+    ));
+    v
+}
+
+#[test]
+fn every_optimizer_spends_exactly_its_budget_inside_the_bounds() {
+    // Budgets below, at and between population multiples, including a partial first
+    // generation.
+    for (name, cfg) in all_configs() {
+        for budget in [1u64, 37, 200, 1037, 3000] {
+            for kind in [TestFunction::Schwefel, TestFunction::Rosenbrock] {
+                let probe = Arc::new(Probe::new(kind, 3));
+                let r = trial(probe.clone(), cfg.as_ref(), budget, None, budget);
+                assert_eq!(r.evaluations, budget, "{name} budget {budget}");
+                assert_eq!(
+                    probe.calls(),
+                    budget,
+                    "{name}: real calls must equal the count"
+                );
+                assert_eq!(
+                    probe.out_of_bounds.load(Ordering::SeqCst),
+                    0,
+                    "{name} left the box"
+                );
+                assert!(probe.bounds().contains(&r.best_x), "{name}");
+                assert_eq!(r.checkpoints.last().unwrap().0, budget);
+                // The reported best is the value at best_x.
+                assert_eq!(r.best, probe.evaluate(&r.best_x), "{name}");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_target_ends_the_trial_at_the_hitting_evaluation() {
+    for (name, cfg) in all_configs() {
+        let probe = Arc::new(Probe::new(TestFunction::Sphere, 2));
+        // Sphere in [-5.12, 5.12]^2: every method reaches 1.0 within a few hundred points.
+        let r = trial(probe.clone(), cfg.as_ref(), 100_000, Some(1.0), 3);
+        assert!(r.stopped_at_target, "{name}");
+        assert!(r.best <= 1.0, "{name}");
+        let hit = r.improvements.last().unwrap();
+        assert_eq!(
+            hit.0, r.evaluations,
+            "{name}: stops at the evaluation that hit"
+        );
+        assert!(
+            r.improvements[..r.improvements.len() - 1]
+                .iter()
+                .all(|i| i.1 > 1.0)
+        );
+    }
+}
+
+#[test]
+fn traces_are_monotone_and_consistent() {
+    for (name, cfg) in all_configs() {
+        let probe = Arc::new(Probe::new(TestFunction::Griewank, 5));
+        let r = trial(probe, cfg.as_ref(), 5000, None, 11);
+        assert!(
+            r.improvements
+                .windows(2)
+                .all(|w| w[0].0 < w[1].0 && w[0].1 > w[1].1),
+            "{name}"
+        );
+        assert!(
+            r.checkpoints
+                .windows(2)
+                .all(|w| w[0].0 < w[1].0 && w[0].1 >= w[1].1),
+            "{name}"
+        );
+        assert_eq!(r.improvements.last().unwrap().1, r.best);
+        // Each checkpoint equals the last improvement at or before it.
+        for &(e, v) in &r.checkpoints {
+            let last = r.improvements.iter().rev().find(|i| i.0 <= e).unwrap();
+            assert_eq!(last.1, v, "{name} at {e}");
+        }
+    }
+}
+
+#[test]
+fn msga_runs_one_os_thread_per_membrane() {
+    let probe = Arc::new(Probe::new(TestFunction::Griewank, 2));
+    trial(probe.clone(), &MsgaConfig::default(), 2000, None, 5);
+    let threads = probe.threads.lock().unwrap().clone();
+    let expected: std::collections::BTreeSet<String> =
+        (0..5).map(|i| format!("msga-membrane-{i}")).collect();
+    assert_eq!(threads, expected);
+}
+
+#[test]
+fn msga_is_identical_on_threads_and_in_one_thread_and_across_repeats() {
+    let threaded = MsgaConfig::default();
+    let single = MsgaConfig {
+        threads: false,
+        ..MsgaConfig::default()
+    };
+    for (kind, dim, stop) in [
+        (TestFunction::Griewank, 2, None),
+        (TestFunction::Schwefel, 10, None),
+        (TestFunction::Sphere, 4, Some(1e-3)),
+    ] {
+        let run = |cfg: &MsgaConfig| {
+            let obj: Arc<dyn Objective> = Arc::new(Probe::new(kind, dim));
+            without_time(trial(obj, cfg, 8000, stop, 99))
+        };
+        let a = run(&threaded);
+        assert_eq!(a, run(&single), "{kind:?}");
+        for _ in 0..3 {
+            assert_eq!(a, run(&threaded), "{kind:?}: repeat");
+        }
+    }
+}
+
+#[test]
+fn different_seeds_give_different_runs() {
+    for (name, cfg) in all_configs() {
+        let obj = || -> Arc<dyn Objective> { Arc::new(Probe::new(TestFunction::Griewank, 2)) };
+        let a = trial(obj(), cfg.as_ref(), 2000, None, 1);
+        let b = trial(obj(), cfg.as_ref(), 2000, None, 2);
+        assert_ne!(a.best_x, b.best_x, "{name}");
+    }
+}
