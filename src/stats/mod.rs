@@ -1,7 +1,22 @@
-//! Descriptive statistics of trial outcomes.
+//! Statistics of trial outcomes: descriptive summaries (here), hypothesis tests and effect
+//! sizes ([`hypothesis`]), bootstrap confidence intervals ([`bootstrap`]) and expected
+//! running time to a target ([`ert`](mod@ert)). All are pure functions of their inputs (the
+//! bootstrap also of its rng), checked against scipy/statsmodels reference values in tests.
 //!
 //! Quantiles use linear interpolation between order statistics (Hyndman-Fan type 7, the
 //! default of numpy and R), so medians and quartiles match what most readers recompute.
+//! Do not swap in `statrs`' `quantile`/`percentile` (`statrs::statistics::OrderStatistics`):
+//! they are Hyndman-Fan type 8 (median-unbiased), which gives different quartiles on the small
+//! samples of a benchmark; the report uses type 7 via [`quantile_sorted`] throughout.
+
+pub mod bootstrap;
+pub mod ert;
+pub mod hypothesis;
+mod rank;
+
+pub use bootstrap::bootstrap_median_ci;
+pub use ert::{Ert, RunToTarget, ert, first_hit};
+pub use hypothesis::{Friedman, MannWhitney, a12, friedman, holm, mann_whitney};
 
 use serde::{Deserialize, Serialize};
 
@@ -66,6 +81,16 @@ mod tests {
         assert_eq!((d.q1, d.median, d.q3), (1.75, 2.5, 4.75));
         assert!((d.std - 4.082_482_904_638_63).abs() < 1e-12);
         assert_eq!((d.min, d.max, d.mean, d.n), (1.0, 10.0, 4.0, 4));
+    }
+
+    #[test]
+    fn statrs_quantile_is_not_type7() {
+        // Why quantile_sorted exists: statrs' quantile is type 8, h = (n + 1/3) p + 1/3.
+        // For [1, 2, 4, 7, 11] and p = 0.25: h = 5/3, so 1 + (2/3)(2 - 1) = 5/3, not 2.
+        use statrs::statistics::{Data, OrderStatistics};
+        let mut data = Data::new(vec![1.0, 2.0, 4.0, 7.0, 11.0]);
+        assert!((data.quantile(0.25) - 5.0 / 3.0).abs() < 1e-12);
+        assert_eq!(quantile_sorted(&[1.0, 2.0, 4.0, 7.0, 11.0], 0.25), 2.0);
     }
 
     #[test]
