@@ -2,7 +2,7 @@
 
 use crate::error::{Error, Result};
 use crate::registry::{objective_kinds, optimizer_kinds};
-use crate::report::table::{markdown, summary_table};
+use crate::report::table::markdown;
 use crate::results::{Provenance, write_run};
 use crate::runner::{RunOptions, run_suite};
 use crate::suite::Suite;
@@ -20,8 +20,11 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
-    /// Run every trial of a suite and write results/<suite name>/.
+    /// Run every trial of a suite, write results/NAME/ (NAME from the suite) and its report.
     Run(RunArgs),
+    /// Regenerate the report (tables, plots, IOHprofiler export) of a results folder from
+    /// its stored traces; with two folders of the same suite, compare them.
+    Report(ReportArgs),
     /// List objectives and optimizers with their parameters and defaults.
     List,
 }
@@ -30,7 +33,7 @@ pub enum Command {
 pub struct RunArgs {
     /// Suite file (TOML), e.g. suites/functions.toml.
     pub suite: PathBuf,
-    /// Results folder (default: results/<suite name>).
+    /// Results folder (default: results/NAME, NAME from the suite).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Override the suite's number of trials.
@@ -45,6 +48,14 @@ pub struct RunArgs {
     /// No progress bar and no table.
     #[arg(long, short)]
     pub quiet: bool,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct ReportArgs {
+    /// Results folder written by `optbench run`.
+    pub results: PathBuf,
+    /// A second results folder of the same suite: print the differences instead.
+    pub other: Option<PathBuf>,
 }
 
 /// Entry point: returns the process exit code.
@@ -62,6 +73,17 @@ pub fn main() -> i32 {
 fn dispatch(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Run(args) => run(args),
+        Command::Report(args) => {
+            match args.other {
+                Some(other) => print!("{}", crate::report::compare(&args.results, &other)?),
+                None => {
+                    let table = crate::report::generate(&args.results)?;
+                    print!("{table}");
+                    println!("\nreport: {}", args.results.join("report.md").display());
+                }
+            }
+            Ok(())
+        }
         Command::List => {
             print!("{}", list());
             Ok(())
@@ -94,14 +116,15 @@ fn run(args: RunArgs) -> Result<()> {
     };
     let (records, threads) = run_suite(&suite, &opts)?;
     let provenance = Provenance::new(&suite, threads, started);
-    let summary = write_run(&out, &suite, &records, &provenance)?;
+    write_run(&out, &suite, &records, &provenance)?;
+    let table = crate::report::generate(&out)?;
     if !args.quiet {
         println!(
             "suite {} (seed {}, {} trials, {} threads, {:.1} s)\n",
             suite.name, suite.seed, suite.trials, threads, provenance.wall_s
         );
-        print!("{}", summary_table(&summary));
-        println!("\nresults: {}", out.display());
+        print!("{table}");
+        println!("\nresults and report: {}", out.display());
     }
     Ok(())
 }

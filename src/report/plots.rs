@@ -9,7 +9,7 @@
 //! Every figure has a title, axis labels, a legend (for box plots the optimizer names under
 //! the boxes) and the Okabe-Ito colour-blind-safe palette ([`PALETTE`]), series `i` in
 //! colour `i`, so one optimizer keeps its colour across figures when the caller keeps the
-//! order. Text is DejaVu Sans compiled into the binary ([`super::font`]): no system font,
+//! order. Text is DejaVu Sans compiled into the binary (the `font` module): no system font,
 //! fontconfig or freetype is needed. The PNG is drawn at 3x and averaged down, so lines and
 //! text are anti-aliased.
 //!
@@ -1197,6 +1197,7 @@ struct Ecdf<'a> {
     title: &'a str,
     series: &'a [(String, Vec<f64>)],
     x_label: &'a str,
+    x_span: (f64, f64),
 }
 
 impl Figure for Ecdf<'_> {
@@ -1209,6 +1210,7 @@ impl Figure for Ecdf<'_> {
             .series
             .iter()
             .flat_map(|(_, v)| v.iter().copied().filter(reached))
+            .chain([self.x_span.0, self.x_span.1])
             .collect();
         let x = Axis::fit(true, &xs, 0.04, 8);
         let y = Axis::fixed(
@@ -1270,12 +1272,14 @@ impl Figure for Ecdf<'_> {
 /// target) pair, e.g. from [`runtimes`]) that are <= x, as a step curve over a log x axis.
 /// +inf and NaN mean "never reached": they count in the denominator but never step the
 /// curve up, so a series that missed some pairs ends below 1. Values <= 0: see the module
-/// documentation.
+/// documentation. The x axis spans at least `x_span` (typically 1 to the budget), so a
+/// curve that stays flat is shown over the whole run.
 pub fn ecdf(
     path_stem: &Path,
     title: &str,
     series: &[(String, Vec<f64>)],
     x_label: &str,
+    x_span: (f64, f64),
 ) -> Result<()> {
     font::register()?;
     render(
@@ -1284,6 +1288,7 @@ pub fn ecdf(
             title,
             series,
             x_label,
+            x_span,
         },
     )
 }
@@ -1623,6 +1628,7 @@ mod tests {
             "Runtime ECDF, 3 targets",
             &series,
             "function evaluations",
+            (1.0, 40_000.0),
         )
         .unwrap();
         only_outputs(dir.path(), "ecdf");
@@ -1681,12 +1687,19 @@ mod tests {
         boxplot(&d.join("b1"), "odd groups", &groups, "error", true).unwrap();
         let f = files(d, "b1");
         assert_eq!(texts(&f.svg, "(no finite value)"), 1);
-        ecdf(&d.join("e0"), "no series", &[], "evaluations").unwrap();
+        ecdf(&d.join("e0"), "no series", &[], "evaluations", (1.0, 1.0)).unwrap();
         let series = vec![
             ("none".to_string(), vec![]),
             ("zero".to_string(), vec![0.0, 1.0]),
         ];
-        ecdf(&d.join("e1"), "odd series", &series, "evaluations").unwrap();
+        ecdf(
+            &d.join("e1"),
+            "odd series",
+            &series,
+            "evaluations",
+            (1.0, 100.0),
+        )
+        .unwrap();
         let f = files(d, "e1");
         assert_eq!(texts(&f.svg, "x values ≤ 0 drawn at 0.1"), 1);
         assert_eq!(std::fs::read_dir(d).unwrap().count(), 14);
@@ -1798,6 +1811,7 @@ mod tests {
             "Runtime ECDF, 20 targets in [10⁻⁸, 10²]",
             &ecdf_series,
             "function evaluations",
+            (1.0, 40_000.0),
         )
         .unwrap();
     }

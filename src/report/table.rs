@@ -1,7 +1,5 @@
 //! Plain-text tables for the terminal.
 
-use crate::results::Summary;
-
 /// `x` with `sig` significant digits, in scientific notation when very large or small.
 pub fn sig(x: f64, sig: usize) -> String {
     if !x.is_finite() {
@@ -55,46 +53,6 @@ pub fn markdown(header: &[&str], rows: &[Vec<String>], right_align: &[bool]) -> 
         out += &line(r.clone());
     }
     out
-}
-
-/// The summary as a table: one row per objective x optimizer.
-pub fn summary_table(summary: &Summary) -> String {
-    let header = [
-        "objective",
-        "optimizer",
-        "median",
-        "q1",
-        "q3",
-        "mean",
-        "std",
-        "min",
-        "max",
-        "evals/trial",
-        "trials",
-        "wall s",
-    ];
-    let rows: Vec<Vec<String>> = summary
-        .results
-        .iter()
-        .map(|c| {
-            vec![
-                c.objective.clone(),
-                c.optimizer.clone(),
-                sig(c.median, 4),
-                sig(c.q1, 4),
-                sig(c.q3, 4),
-                sig(c.mean, 4),
-                sig(c.std, 3),
-                sig(c.min, 4),
-                sig(c.max, 4),
-                format!("{}", c.evaluations / c.trials.max(1) as u64),
-                format!("{}", c.trials),
-                format!("{:.2}", c.wall_s),
-            ]
-        })
-        .collect();
-    let right: Vec<bool> = (0..header.len()).map(|i| i >= 2).collect();
-    markdown(&header, &rows, &right)
 }
 
 #[cfg(test)]

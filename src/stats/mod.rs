@@ -40,6 +40,10 @@ pub fn quantile_sorted(sorted: &[f64], p: f64) -> f64 {
     let h = (sorted.len() - 1) as f64 * p.clamp(0.0, 1.0);
     let lo = h.floor() as usize;
     let hi = h.ceil() as usize;
+    if sorted[lo] == sorted[hi] {
+        // Also keeps infinite order statistics from turning into NaN (inf - inf).
+        return sorted[lo];
+    }
     sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo])
 }
 
@@ -49,7 +53,10 @@ pub fn describe(values: &[f64]) -> Describe {
     s.sort_by(f64::total_cmp);
     let n = s.len();
     let mean = s.iter().sum::<f64>() / n as f64;
-    let std = if n > 1 {
+    let std = if !mean.is_finite() {
+        // An infinite value (a trial that never saw a finite value) has no finite spread.
+        f64::INFINITY
+    } else if n > 1 {
         (s.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt()
     } else {
         0.0
@@ -91,6 +98,16 @@ mod tests {
         let mut data = Data::new(vec![1.0, 2.0, 4.0, 7.0, 11.0]);
         assert!((data.quantile(0.25) - 5.0 / 3.0).abs() < 1e-12);
         assert_eq!(quantile_sorted(&[1.0, 2.0, 4.0, 7.0, 11.0], 0.25), 2.0);
+    }
+
+    #[test]
+    fn infinite_values_never_make_nan() {
+        let s = [1.0, f64::INFINITY, f64::INFINITY, f64::INFINITY];
+        assert_eq!(quantile_sorted(&s, 0.5), f64::INFINITY);
+        assert_eq!(quantile_sorted(&s, 0.0), 1.0);
+        assert_eq!(quantile_sorted(&s, 0.2), f64::INFINITY);
+        let d = describe(&s);
+        assert!(!d.std.is_nan() && !d.mean.is_nan() && !d.median.is_nan());
     }
 
     #[test]

@@ -1,0 +1,477 @@
+//! Tables for papers, rendered from an [`Analysis`]: Markdown (also printed), LaTeX
+//! (booktabs) and CSV.
+
+use super::analysis::{ALPHA, Analysis, ObjectiveStats};
+use super::table::{markdown, sig};
+use std::fmt::Write;
+
+fn error_label(o: &ObjectiveStats) -> &'static str {
+    if o.optimum.is_some() {
+        "error to optimum"
+    } else {
+        "final value"
+    }
+}
+
+/// Marker and text for cell `i` against the best of its objective.
+fn versus_best(o: &ObjectiveStats, i: usize) -> (bool, String) {
+    match o.versus_best(i) {
+        None => (false, "best".into()),
+        Some(p) => {
+            // A12 oriented as "this optimizer vs the best": > 0.5 means worse.
+            let a12 = if p.a == o.cells[i].optimizer {
+                p.a12
+            } else {
+                1.0 - p.a12
+            };
+            (
+                p.p_holm < ALPHA,
+                format!("p={} A12={:.2}", sig(p.p_holm, 2), a12),
+            )
+        }
+    }
+}
+
+/// The main table: one row per objective x optimizer.
+pub fn summary_markdown(a: &Analysis) -> String {
+    let header = [
+        "objective",
+        "optimizer",
+        "median [95% CI]",
+        "q1",
+        "q3",
+        "mean",
+        "std",
+        "min",
+        "max",
+        "vs best (Holm)",
+    ];
+    let mut rows = Vec::new();
+    for o in &a.objectives {
+        for (i, c) in o.cells.iter().enumerate() {
+            let (significant, text) = versus_best(o, i);
+            let med = format!(
+                "{} [{}, {}]",
+                sig(c.stats.median, 3),
+                sig(c.median_ci.0, 3),
+                sig(c.median_ci.1, 3)
+            );
+            rows.push(vec![
+                o.id.clone(),
+                c.optimizer.clone(),
+                if i == o.best {
+                    format!("**{med}**")
+                } else {
+                    med
+                },
+                sig(c.stats.q1, 3),
+                sig(c.stats.q3, 3),
+                sig(c.stats.mean, 3),
+                sig(c.stats.std, 2),
+                sig(c.stats.min, 3),
+                sig(c.stats.max, 3),
+                if significant {
+                    format!("{text} *")
+                } else {
+                    text
+                },
+            ]);
+        }
+    }
+    let right: Vec<bool> = (0..header.len()).map(|i| (2..9).contains(&i)).collect();
+    markdown(&header, &rows, &right)
+}
+
+/// Success rate and ERT per target.
+pub fn ert_markdown(a: &Analysis) -> String {
+    let mut out = String::new();
+    for o in a.objectives.iter().filter(|o| !o.targets.is_empty()) {
+        let mut header = vec!["optimizer".to_string()];
+        header.extend(
+            o.targets
+                .iter()
+                .map(|t| format!("{} <= {}", short(o), sig(*t, 2))),
+        );
+        let rows: Vec<Vec<String>> = o
+            .cells
+            .iter()
+            .map(|c| {
+                let mut r = vec![c.optimizer.clone()];
+                r.extend(c.targets.iter().map(|e| match e.ert {
+                    Some(v) => format!("{}/{} {}", e.successes, e.trials, sig(v, 3)),
+                    None => format!("0/{} -", e.trials),
+                }));
+                r
+            })
+            .collect();
+        let h: Vec<&str> = header.iter().map(String::as_str).collect();
+        let right: Vec<bool> = (0..h.len()).map(|i| i > 0).collect();
+        writeln!(
+            out,
+            "**{}** (successes/trials and ERT in evaluations)\n",
+            o.id
+        )
+        .unwrap();
+        out += &markdown(&h, &rows, &right);
+        out.push('\n');
+    }
+    out
+}
+
+fn short(o: &ObjectiveStats) -> &'static str {
+    if o.optimum.is_some() { "err" } else { "f" }
+}
+
+/// Median error at 1 %, 10 % and 100 % of the budget.
+pub fn fixed_budget_markdown(a: &Analysis) -> String {
+    let mut rows = Vec::new();
+    for o in &a.objectives {
+        for (c, meds) in o.cells.iter().zip(&o.fixed_budget_medians) {
+            let cells: Vec<String> = o
+                .fixed_budgets
+                .iter()
+                .zip(meds)
+                .map(|(b, m)| format!("{}: {}", b, sig(*m, 3)))
+                .collect();
+            rows.push(vec![o.id.clone(), c.optimizer.clone(), cells.join(" | ")]);
+        }
+    }
+    markdown(
+        &[
+            "objective",
+            "optimizer",
+            "median error at evaluations (1% | 10% | 100% of budget)",
+        ],
+        &rows,
+        &[false, false, false],
+    )
+}
+
+/// Every pairwise test.
+pub fn pairwise_markdown(a: &Analysis) -> String {
+    let mut rows = Vec::new();
+    for o in &a.objectives {
+        for p in &o.pairs {
+            rows.push(vec![
+                o.id.clone(),
+                format!("{} vs {}", p.a, p.b),
+                sig(p.p_value, 3),
+                sig(p.p_holm, 3),
+                format!("{:.3}", p.a12),
+            ]);
+        }
+    }
+    markdown(
+        &[
+            "objective",
+            "pair (A vs B)",
+            "p (Mann-Whitney)",
+            "p (Holm)",
+            "A12",
+        ],
+        &rows,
+        &[false, false, true, true, true],
+    )
+}
+
+/// Average ranks and Friedman's test.
+pub fn ranks_markdown(a: &Analysis) -> String {
+    let Some(f) = &a.friedman else {
+        return "Ranks need at least two objectives and two optimizers.\n".into();
+    };
+    let mut order: Vec<usize> = (0..a.optimizers.len()).collect();
+    order.sort_by(|&x, &y| f.mean_ranks[x].total_cmp(&f.mean_ranks[y]));
+    let rows: Vec<Vec<String>> = order
+        .iter()
+        .map(|&i| vec![a.optimizers[i].clone(), format!("{:.2}", f.mean_ranks[i])])
+        .collect();
+    let mut s = markdown(
+        &["optimizer", "average rank (1 = best)"],
+        &rows,
+        &[false, true],
+    );
+    writeln!(
+        s,
+        "\nFriedman test over {} objectives: chi2 = {:.3}, df = {}, p = {}",
+        a.objectives.len(),
+        f.statistic,
+        f.df,
+        sig(f.p_value, 3)
+    )
+    .unwrap();
+    s
+}
+
+/// The whole Markdown report.
+pub fn report_markdown(a: &Analysis) -> String {
+    let mut s = String::new();
+    writeln!(s, "# optbench report: {} (seed {})\n", a.suite, a.seed).unwrap();
+    writeln!(
+        s,
+        "Final {} per trial. Median with a 95 % percentile-bootstrap interval \
+         ({} resamples, seeded); quartiles are type 7. Bold: lowest median. \
+         'vs best': two-sided Mann-Whitney U against the best, Holm-corrected over all pairs \
+         of the objective, and A12 = P(this > best); * marks p < {ALPHA}.\n",
+        a.objectives.first().map(error_label).unwrap_or("error"),
+        super::analysis::RESAMPLES
+    )
+    .unwrap();
+    s += &summary_markdown(a);
+    s += "\n## Average ranks\n\n";
+    s += &ranks_markdown(a);
+    s += "\n## Fixed budget\n\n";
+    s += &fixed_budget_markdown(a);
+    let ert = ert_markdown(a);
+    if !ert.is_empty() {
+        s += "\n## Fixed target: success rate and ERT\n\n\
+              ERT = evaluations summed over all trials (failures count their whole budget) \
+              divided by the successes.\n\n";
+        s += &ert;
+    }
+    s += "\n## Pairwise tests\n\n";
+    s += &pairwise_markdown(a);
+    s
+}
+
+/// `x` in LaTeX math: `1.23`, or `1.23\cdot10^{-5}` when very small or large.
+pub fn latex_num(x: f64) -> String {
+    let s = sig(x, 3);
+    match s.split_once('e') {
+        Some((m, e)) => format!("${m}\\cdot10^{{{e}}}$"),
+        None => format!("${s}$"),
+    }
+}
+
+fn latex_escape(s: &str) -> String {
+    s.replace('_', "\\_")
+        .replace('%', "\\%")
+        .replace('&', "\\&")
+        .replace('#', "\\#")
+}
+
+/// The summary as a booktabs table: objectives x optimizers, median errors, best in bold,
+/// a dagger where the difference to the best is significant after Holm.
+pub fn summary_latex(a: &Analysis) -> String {
+    let mut s = String::new();
+    writeln!(s, "% optbench report: {} (seed {})", a.suite, a.seed).unwrap();
+    writeln!(s, "% requires \\usepackage{{booktabs}}").unwrap();
+    writeln!(s, "\\begin{{table}}[t]\n\\centering").unwrap();
+    writeln!(
+        s,
+        "\\caption{{Median final error over trials. Bold: best median per objective; \
+         $^\\dagger$: different from the best (two-sided Mann--Whitney U, Holm-corrected, \
+         $p<{ALPHA}$).}}"
+    )
+    .unwrap();
+    writeln!(s, "\\label{{tab:{}}}", latex_escape(&a.suite)).unwrap();
+    writeln!(
+        s,
+        "\\begin{{tabular}}{{l{}}}",
+        "r".repeat(a.optimizers.len())
+    )
+    .unwrap();
+    writeln!(s, "\\toprule").unwrap();
+    let head: Vec<String> = a.optimizers.iter().map(|o| latex_escape(o)).collect();
+    writeln!(s, "Objective & {} \\\\", head.join(" & ")).unwrap();
+    writeln!(s, "\\midrule").unwrap();
+    for o in &a.objectives {
+        let cells: Vec<String> = (0..o.cells.len())
+            .map(|i| {
+                let n = latex_num(o.cells[i].stats.median);
+                if i == o.best {
+                    format!("\\textbf{{{n}}}")
+                } else if versus_best(o, i).0 {
+                    format!("{n}$^\\dagger$")
+                } else {
+                    n
+                }
+            })
+            .collect();
+        writeln!(s, "{} & {} \\\\", latex_escape(&o.id), cells.join(" & ")).unwrap();
+    }
+    writeln!(s, "\\bottomrule\n\\end{{tabular}}\n\\end{{table}}").unwrap();
+    s
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+fn num(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x:e}")
+    } else {
+        String::new()
+    }
+}
+
+/// Machine-readable tables: (file name, CSV text).
+pub fn csv_tables(a: &Analysis) -> Vec<(&'static str, String)> {
+    let mut summary = String::from(
+        "objective,optimizer,trials,median,median_ci_low,median_ci_high,q1,q3,mean,std,min,max,best,p_holm_vs_best,a12_vs_best,evaluations,wall_s\n",
+    );
+    let mut pairs = String::from("objective,a,b,p_value,p_holm,a12\n");
+    let mut ert = String::from("objective,optimizer,target,successes,trials,success_rate,ert\n");
+    let mut fixed = String::from("objective,optimizer,evaluations,median_error\n");
+    for o in &a.objectives {
+        let id = csv_field(&o.id);
+        for (i, c) in o.cells.iter().enumerate() {
+            let (p, a12) = match o.versus_best(i) {
+                None => (String::new(), String::new()),
+                Some(p) => {
+                    let a12 = if p.a == c.optimizer {
+                        p.a12
+                    } else {
+                        1.0 - p.a12
+                    };
+                    (num(p.p_holm), format!("{a12}"))
+                }
+            };
+            let d = &c.stats;
+            writeln!(
+                summary,
+                "{id},{},{},{},{},{},{},{},{},{},{},{},{},{p},{a12},{},{}",
+                csv_field(&c.optimizer),
+                d.n,
+                num(d.median),
+                num(c.median_ci.0),
+                num(c.median_ci.1),
+                num(d.q1),
+                num(d.q3),
+                num(d.mean),
+                num(d.std),
+                num(d.min),
+                num(d.max),
+                i == o.best,
+                c.evaluations,
+                c.wall_s
+            )
+            .unwrap();
+            for (t, e) in o.targets.iter().zip(&c.targets) {
+                writeln!(
+                    ert,
+                    "{id},{},{},{},{},{},{}",
+                    csv_field(&c.optimizer),
+                    num(*t),
+                    e.successes,
+                    e.trials,
+                    e.success_rate,
+                    e.ert.map(num).unwrap_or_default()
+                )
+                .unwrap();
+            }
+            for (b, m) in o.fixed_budgets.iter().zip(&o.fixed_budget_medians[i]) {
+                writeln!(fixed, "{id},{},{b},{}", csv_field(&c.optimizer), num(*m)).unwrap();
+            }
+        }
+        for p in &o.pairs {
+            writeln!(
+                pairs,
+                "{id},{},{},{},{},{}",
+                csv_field(&p.a),
+                csv_field(&p.b),
+                num(p.p_value),
+                num(p.p_holm),
+                p.a12
+            )
+            .unwrap();
+        }
+    }
+    vec![
+        ("summary.csv", summary),
+        ("pairwise.csv", pairs),
+        ("ert.csv", ert),
+        ("fixed_budget.csv", fixed),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::harness::TrialRecord;
+    use crate::report::analysis::{ObjectiveInfo, analyse};
+
+    fn rec(opt: &str, trial: usize, best: f64) -> TrialRecord {
+        TrialRecord {
+            objective: "f_1".into(),
+            optimizer: opt.into(),
+            trial,
+            seed: String::new(),
+            budget: 100,
+            evaluations: 100,
+            best,
+            best_x: vec![0.0],
+            optimum: Some(0.0),
+            stopped_at_target: false,
+            nonfinite: 0,
+            wall_s: 0.0,
+            improvements: vec![(1, 10.0), (50, best)],
+            checkpoints: vec![],
+        }
+    }
+
+    /// "good" and "same" overlap; "bad" is far worse in every trial.
+    fn analysis() -> Analysis {
+        let mut r = Vec::new();
+        for t in 0..12 {
+            r.push(rec("good", t, 0.01 * (1.0 + t as f64)));
+            r.push(rec("same", t, 0.01 * (1.5 + t as f64)));
+            r.push(rec("bad", t, 5.0 + t as f64));
+        }
+        let info = [ObjectiveInfo {
+            id: "f_1".into(),
+            dim: 1,
+            targets: vec![1.0, 0.05],
+        }];
+        analyse("s", 1, &info, &r)
+    }
+
+    #[test]
+    fn latex_bolds_the_best_and_marks_significant_differences() {
+        let a = analysis();
+        let tex = summary_latex(&a);
+        assert!(tex.contains("\\toprule") && tex.contains("\\bottomrule"));
+        assert!(tex.contains("Objective & good & same & bad \\\\"), "{tex}");
+        let row = tex.lines().find(|l| l.starts_with("f\\_1 &")).unwrap();
+        let cells: Vec<&str> = row.trim_end_matches(" \\\\").split(" & ").collect();
+        assert_eq!(cells[1], "\\textbf{$0.0650$}");
+        assert!(
+            !cells[2].contains("dagger"),
+            "overlapping runs are not different: {row}"
+        );
+        assert!(cells[3].ends_with("$^\\dagger$"), "{row}");
+    }
+
+    #[test]
+    fn markdown_and_csv_agree_with_the_analysis() {
+        let a = analysis();
+        let md = summary_markdown(&a);
+        assert!(md.contains("**0.0650 ["), "{md}");
+        let bad = md.lines().find(|l| l.contains("| bad")).unwrap();
+        assert!(bad.trim_end().ends_with("* |"), "{bad}");
+        let csv = csv_tables(&a);
+        let (_, summary) = &csv[0];
+        assert_eq!(summary.lines().count(), 4);
+        assert!(
+            summary
+                .lines()
+                .nth(1)
+                .unwrap()
+                .starts_with("f_1,good,12,6.5e-2,")
+        );
+        let (_, ert) = &csv[2];
+        // Every run reaches error 1.0 at evaluation 50 except "bad" (never).
+        assert!(ert.contains("f_1,good,1e0,12,12,1,5e1"), "{ert}");
+        assert!(ert.contains("f_1,bad,1e0,0,12,0,\n"), "{ert}");
+    }
+
+    #[test]
+    fn latex_numbers() {
+        assert_eq!(latex_num(0.000_012_3), "$1.23\\cdot10^{-5}$");
+        assert_eq!(latex_num(12.0), "$12.0$");
+    }
+}
