@@ -18,6 +18,8 @@ pub mod harness;
 pub mod objective;
 pub mod optimizer;
 pub mod params;
+pub mod physics;
+pub mod recording;
 pub mod registry;
 pub mod report;
 pub mod results;
