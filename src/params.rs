@@ -20,6 +20,8 @@ pub enum Kind {
     Choice(&'static [&'static str]),
     /// true or false.
     Bool,
+    /// Free text: a path, a signal or twin specification.
+    Text,
 }
 
 /// What happens when a suite leaves a parameter out.
@@ -79,6 +81,7 @@ impl fmt::Display for Kind {
             },
             Kind::Choice(c) => write!(f, "one of {}", c.join(" | ")),
             Kind::Bool => write!(f, "true | false"),
+            Kind::Text => write!(f, "text"),
         }
     }
 }
@@ -126,6 +129,7 @@ impl Spec {
                 }
             }
             (Kind::Bool, toml::Value::Boolean(b)) => Ok(Value::Bool(*b)),
+            (Kind::Text, toml::Value::String(s)) => Ok(Value::Str(s.clone())),
             (kind, other) => Err(format!("expected {kind}, found {}", other.type_str())),
         }
     }
@@ -302,7 +306,16 @@ impl Params {
         }
     }
 
-    /// A choice parameter.
+    /// A text parameter with [`Default::Derived`].
+    pub fn opt_str(&self, name: &str) -> Option<&str> {
+        match self.get(name) {
+            Some(Value::Str(s)) => Some(s),
+            None => None,
+            other => panic!("parameter {name} is not a string: {other:?}"),
+        }
+    }
+
+    /// A choice or text parameter.
     pub fn str(&self, name: &str) -> &str {
         match self.get(name) {
             Some(Value::Str(s)) => s,

@@ -5,6 +5,7 @@ use crate::objective::functions::{Function, TestFunction};
 use crate::objective::{Bounds, Objective};
 use crate::optimizer::OptimizerConfig;
 use crate::optimizer::ga::GaConfig;
+use crate::optimizer::gradient::GradientConfig;
 use crate::optimizer::msga::MsgaConfig;
 use crate::optimizer::operators::Mutation;
 use crate::optimizer::pso::PsoConfig;
@@ -267,6 +268,34 @@ fn build_random(p: &Params) -> Result<Arc<dyn OptimizerConfig>, Error> {
     }))
 }
 
+const BP_PARAMS: &[Spec] = &[
+    Spec {
+        name: "learning_rate",
+        kind: Kind::Float {
+            min: f64::MIN_POSITIVE,
+            max: f64::INFINITY,
+        },
+        default: D::Float(0.01),
+        help: "initial step size eta (halved after a step that increases the cost)",
+    },
+    Spec {
+        name: "momentum",
+        kind: Kind::Float {
+            min: 0.0,
+            max: 0.999,
+        },
+        default: D::Float(0.9),
+        help: "momentum term mu of dp(k) = -eta grad + mu dp(k-1) (seed eq. 4.6-4.8)",
+    },
+];
+
+fn build_bp(p: &Params) -> Result<Arc<dyn OptimizerConfig>, Error> {
+    Ok(Arc::new(GradientConfig {
+        learning_rate: p.float("learning_rate"),
+        momentum: p.float("momentum"),
+    }))
+}
+
 /// Every optimizer kind.
 pub fn optimizer_kinds() -> Vec<OptimizerKind> {
     vec![
@@ -287,6 +316,12 @@ pub fn optimizer_kinds() -> Vec<OptimizerKind> {
             help: "membrane-structure GA (seed 3.1.1): 5 membranes, one OS thread each",
             params: MSGA_PARAMS,
             build: build_msga,
+        },
+        OptimizerKind {
+            name: "bp",
+            help: "back-propagation baseline: gradient descent with momentum (needs a gradient; one gradient = one evaluation)",
+            params: BP_PARAMS,
+            build: build_bp,
         },
         OptimizerKind {
             name: "random",

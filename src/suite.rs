@@ -268,6 +268,16 @@ impl Suite {
             });
         }
 
+        for opt in optimizers.iter().filter(|o| o.config.needs_gradient()) {
+            if let Some(obj) = objectives.iter().find(|o| !o.objective.has_gradient()) {
+                return Err(opt.params.entry_error(format!(
+                    "needs the objective's gradient, but objective `{}` is a black box; \
+                     use gradient-free optimizers there or a separate suite",
+                    obj.id
+                )));
+            }
+        }
+
         Ok(Suite {
             path: path.to_path_buf(),
             text: text.to_string(),

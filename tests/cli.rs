@@ -172,7 +172,7 @@ fn unknown_names_list_the_valid_ones() {
         &[
             "bad.toml:8:",
             "unknown optimizer kind `cmaes`",
-            "ga, pso, msga, random",
+            "ga, pso, msga, bp, random",
         ],
     );
     rejects(

@@ -166,3 +166,27 @@ fn different_seeds_give_different_runs() {
         assert_ne!(a.best_x, b.best_x, "{name}");
     }
 }
+
+#[test]
+fn bp_converges_on_smooth_functions_with_its_gradient() {
+    use optbench::optimizer::gradient::GradientConfig;
+    let cfg = GradientConfig::default();
+    // Sphere: 300 gradient steps from a random start reach 1e-8.
+    let probe = Arc::new(Probe::new(TestFunction::Sphere, 10));
+    let r = trial(probe, &cfg, 300, None, 1);
+    assert!(r.best < 1e-8, "sphere: {}", r.best);
+    // Rosenbrock-2, the curved valley that gradient descent crawls along: the bold-driver
+    // rate keeps it stable and 20,000 gradients get within 1e-3.
+    let probe = Arc::new(Probe::new(TestFunction::Rosenbrock, 2));
+    let r = trial(
+        probe,
+        &GradientConfig {
+            learning_rate: 1e-3,
+            momentum: 0.9,
+        },
+        20_000,
+        None,
+        1,
+    );
+    assert!(r.best < 1e-3, "rosenbrock: {}", r.best);
+}

@@ -204,6 +204,21 @@ impl Evaluator {
         (self.evaluate_batch(x, &mut out) == 1).then_some(out[0])
     }
 
+    /// Value and gradient at `x`, counted as one evaluation (a gradient costs a few function
+    /// evaluations; budgets stay comparable in order of magnitude, and reports say so).
+    /// `None` once the budget is spent, or if the objective has no gradient.
+    pub fn evaluate_with_gradient(&mut self, x: &[f64], grad: &mut [f64]) -> Option<f64> {
+        if self.remaining() == 0 {
+            return None;
+        }
+        let f = sanitize(self.objective.value_and_gradient(x, grad)?);
+        if !f.is_finite() || grad.iter().any(|g| !g.is_finite()) {
+            grad.fill(0.0);
+        }
+        self.record(x, f);
+        Some(f)
+    }
+
     /// Reserves up to `n` evaluations for evaluation elsewhere (another thread). The result
     /// must come back through [`Evaluator::commit`]; grants are counted at commit, in the
     /// order the caller commits them.

@@ -92,6 +92,68 @@ impl TestFunction {
         }
     }
 
+    /// Value at `x` and its gradient into `g` (same length as `x`).
+    pub fn value_and_gradient(self, x: &[f64], g: &mut [f64]) -> f64 {
+        let n = x.len();
+        match self {
+            TestFunction::Sphere => {
+                for (gi, xi) in g.iter_mut().zip(x) {
+                    *gi = 2.0 * xi;
+                }
+            }
+            TestFunction::Griewank => {
+                // Product of the cosines without factor j, from prefix and suffix products.
+                let c: Vec<f64> = (0..n)
+                    .map(|i| (x[i] / ((i + 1) as f64).sqrt()).cos())
+                    .collect();
+                let mut prefix = 1.0;
+                let mut suffix = vec![1.0; n + 1];
+                for i in (0..n).rev() {
+                    suffix[i] = suffix[i + 1] * c[i];
+                }
+                for j in 0..n {
+                    let sj = ((j + 1) as f64).sqrt();
+                    g[j] = x[j] / 2000.0 + (x[j] / sj).sin() / sj * prefix * suffix[j + 1];
+                    prefix *= c[j];
+                }
+            }
+            TestFunction::Schwefel => {
+                for (gi, &xi) in g.iter_mut().zip(x) {
+                    let r = xi.abs().sqrt();
+                    *gi = -(r.sin() + 0.5 * r * r.cos());
+                }
+            }
+            TestFunction::Rastrigin => {
+                for (gi, &xi) in g.iter_mut().zip(x) {
+                    *gi = 2.0 * xi + 20.0 * PI * (2.0 * PI * xi).sin();
+                }
+            }
+            TestFunction::Rosenbrock => {
+                g.fill(0.0);
+                for i in 0..n - 1 {
+                    let a = x[i + 1] - x[i] * x[i];
+                    g[i] += -400.0 * x[i] * a - 2.0 * (1.0 - x[i]);
+                    g[i + 1] += 200.0 * a;
+                }
+            }
+            TestFunction::Ackley => {
+                let nf = n as f64;
+                let r = (x.iter().map(|v| v * v).sum::<f64>() / nf).sqrt();
+                let ec = (x.iter().map(|v| (2.0 * PI * v).cos()).sum::<f64>() / nf).exp();
+                let er = (-0.2 * r).exp();
+                for (gi, &xi) in g.iter_mut().zip(x) {
+                    let radial = if r > 0.0 {
+                        4.0 * er * xi / (nf * r)
+                    } else {
+                        0.0
+                    };
+                    *gi = radial + 2.0 * PI / nf * ec * (2.0 * PI * xi).sin();
+                }
+            }
+        }
+        self.value(x)
+    }
+
     /// Value at `x` (any length >= [`TestFunction::min_dim`]).
     pub fn value(self, x: &[f64]) -> f64 {
         match self {
@@ -186,6 +248,14 @@ impl Objective for Function {
     fn optimum(&self) -> Option<f64> {
         self.optimum
     }
+
+    fn value_and_gradient(&self, x: &[f64], grad: &mut [f64]) -> Option<f64> {
+        Some(self.kind.value_and_gradient(x, grad))
+    }
+
+    fn has_gradient(&self) -> bool {
+        true
+    }
 }
 
 #[cfg(test)]
@@ -259,6 +329,34 @@ mod tests {
         obj.evaluate_batch(&pts, &mut out);
         assert_eq!(out[0], obj.evaluate(&pts[..3]));
         assert_eq!(out[1], obj.evaluate(&pts[3..]));
+    }
+
+    #[test]
+    fn gradients_match_finite_differences() {
+        let mut rng = crate::harness::TrialSeed::from_u64(4).rng(0);
+        for kind in TestFunction::ALL {
+            let f = Function::standard(kind, 5).unwrap();
+            for _ in 0..20 {
+                let mut x = vec![0.0; 5];
+                f.bounds().sample(&mut rng, &mut x);
+                let mut g = vec![0.0; 5];
+                let v = f.value_and_gradient(&x, &mut g).unwrap();
+                assert_eq!(v, f.evaluate(&x));
+                for j in 0..5 {
+                    let h = 1e-6 * (1.0 + x[j].abs());
+                    let (mut a, mut b) = (x.clone(), x.clone());
+                    a[j] += h;
+                    b[j] -= h;
+                    let fd = (f.evaluate(&a) - f.evaluate(&b)) / (2.0 * h);
+                    let tol = 1e-5 * (1.0 + fd.abs().max(g[j].abs()));
+                    assert!(
+                        (fd - g[j]).abs() < tol,
+                        "{kind:?} d{j}: fd {fd} vs {}",
+                        g[j]
+                    );
+                }
+            }
+        }
     }
 
     #[test]

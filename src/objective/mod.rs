@@ -124,4 +124,47 @@ pub trait Objective: Send + Sync {
     fn optimum(&self) -> Option<f64> {
         None
     }
+
+    /// Value and gradient at `x`, for objectives that have one (gradient-based baselines
+    /// such as back-propagation); `None` where the objective is a pure black box.
+    fn value_and_gradient(&self, _x: &[f64], _grad: &mut [f64]) -> Option<f64> {
+        None
+    }
+
+    /// Whether [`Objective::value_and_gradient`] is implemented.
+    fn has_gradient(&self) -> bool {
+        false
+    }
+
+    /// How reports should present a value of this objective (e.g. a fitting cost as an RMSE
+    /// in the recording's units); `None` shows values as they are.
+    fn presentation(&self) -> Option<Presentation> {
+        None
+    }
+}
+
+/// A monotone map from objective values to the number a reader wants to see.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Presentation {
+    /// Column label, e.g. `RMSE [mm]`.
+    pub label: String,
+    pub kind: PresentationKind,
+}
+
+/// The supported maps.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PresentationKind {
+    /// The value is J = sum(e^2)/2 over `samples` residuals: show sqrt(2 J / samples).
+    RmseFromHalfSse { samples: usize },
+}
+
+impl Presentation {
+    /// The presented number for objective value `f`.
+    pub fn apply(&self, f: f64) -> f64 {
+        match self.kind {
+            PresentationKind::RmseFromHalfSse { samples } => {
+                (2.0 * f.max(0.0) / samples as f64).sqrt()
+            }
+        }
+    }
 }

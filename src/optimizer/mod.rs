@@ -3,6 +3,7 @@
 //! budget, the trace and the random streams. Optimizers know nothing of files or suites.
 
 pub mod ga;
+pub mod gradient;
 pub mod msga;
 pub mod operators;
 pub mod pso;
@@ -23,6 +24,12 @@ pub trait Optimizer: Send {
 pub trait OptimizerConfig: Send + Sync + fmt::Debug {
     /// Evaluations spent per iteration, to translate budgets into iterations.
     fn batch_size(&self) -> usize;
+
+    /// Whether the optimizer needs the objective's gradient (a suite pairing it with a
+    /// black-box objective is refused before anything runs).
+    fn needs_gradient(&self) -> bool {
+        false
+    }
 
     /// A new optimizer for one trial over `bounds`, drawing every random number from
     /// `seed`'s streams. `budget` lets schedules (PSO's inertia) span the whole run.

@@ -53,6 +53,14 @@ impl Objective for Probe {
     fn optimum(&self) -> Option<f64> {
         self.inner.optimum()
     }
+    fn value_and_gradient(&self, x: &[f64], grad: &mut [f64]) -> Option<f64> {
+        let f = self.evaluate(x);
+        self.inner.value_and_gradient(x, grad)?;
+        Some(f)
+    }
+    fn has_gradient(&self) -> bool {
+        true
+    }
 }
 
 /// A trial record with its wall time removed, for equality checks.
