@@ -180,17 +180,15 @@ impl Suite {
         for entry in &raw.objectives {
             let line = line_of(text, entry.span().start);
             let mut fields = entry.get_ref().clone();
-            let kind_name = take_kind(&mut fields, path, text, line, "objective")?;
-            let kind = kinds.iter().find(|k| k.name == kind_name).ok_or_else(|| {
-                Error::at(
-                    path,
-                    line,
-                    format!(
-                        "unknown objective kind `{kind_name}`; valid kinds: {}",
-                        kinds.iter().map(|k| k.name).collect::<Vec<_>>().join(", ")
-                    ),
-                )
-            })?;
+            let kind = find_kind(
+                &kinds,
+                |k| k.name,
+                &mut fields,
+                path,
+                text,
+                line,
+                "objective",
+            )?;
             let id = take_str(&mut fields, "id", path, text)?;
             let own_budget = take_int(&mut fields, "budget", path, text)?;
             let own_targets = take_floats(&mut fields, "targets", path, text)?;
@@ -237,17 +235,15 @@ impl Suite {
         for entry in &raw.optimizers {
             let line = line_of(text, entry.span().start);
             let mut fields = entry.get_ref().clone();
-            let kind_name = take_kind(&mut fields, path, text, line, "optimizer")?;
-            let kind = kinds.iter().find(|k| k.name == kind_name).ok_or_else(|| {
-                Error::at(
-                    path,
-                    line,
-                    format!(
-                        "unknown optimizer kind `{kind_name}`; valid kinds: {}",
-                        kinds.iter().map(|k| k.name).collect::<Vec<_>>().join(", ")
-                    ),
-                )
-            })?;
+            let kind = find_kind(
+                &kinds,
+                |k| k.name,
+                &mut fields,
+                path,
+                text,
+                line,
+                "optimizer",
+            )?;
             let id = take_str(&mut fields, "id", path, text)?.unwrap_or_else(|| kind.name.into());
             check_id(&id, &mut ids, path, line, "optimizer")?;
             let params = Params::validate(
@@ -380,18 +376,31 @@ fn given(fields: RawEntry, text: &str) -> BTreeMap<String, (toml::Value, usize)>
         .collect()
 }
 
-fn take_kind(
+/// Takes the entry's `kind` and finds it among `kinds`, or says which kinds exist.
+fn find_kind<'k, K>(
+    kinds: &'k [K],
+    name: impl Fn(&K) -> &'static str,
     fields: &mut RawEntry,
     path: &Path,
     text: &str,
     line: usize,
     what: &str,
-) -> Result<String> {
-    take_str(fields, "kind", path, text)?.ok_or_else(|| {
+) -> Result<&'k K> {
+    let wanted = take_str(fields, "kind", path, text)?.ok_or_else(|| {
         Error::at(
             path,
             line,
             format!("{what} without `kind`; run `optbench list` for the valid kinds"),
+        )
+    })?;
+    kinds.iter().find(|k| name(k) == wanted).ok_or_else(|| {
+        Error::at(
+            path,
+            line,
+            format!(
+                "unknown {what} kind `{wanted}`; valid kinds: {}",
+                kinds.iter().map(&name).collect::<Vec<_>>().join(", ")
+            ),
         )
     })
 }
