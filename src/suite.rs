@@ -15,6 +15,7 @@
 //! id = "griewank-2d"      # optional name in results (default: kind-<dim>d)
 //! dim = 2
 //! budget = 40000          # optional per-objective override (also targets, stop_at)
+//! optimizers = ["MSGA"]   # optional: only these optimizer ids run on this objective
 //!
 //! [[optimizer]]
 //! kind = "msga"
@@ -70,6 +71,8 @@ pub struct ObjectiveEntry {
     pub targets: Vec<f64>,
     /// Error at which a trial ends early.
     pub stop_at: Option<f64>,
+    /// Indices of the optimizers that run on this objective (default: all).
+    pub optimizers: Vec<usize>,
     pub params: Params,
 }
 
@@ -176,6 +179,7 @@ impl Suite {
 
         let kinds = objective_kinds();
         let mut objectives = Vec::new();
+        let mut selections = Vec::new();
         let mut ids = BTreeSet::new();
         for entry in &raw.objectives {
             let line = line_of(text, entry.span().start);
@@ -193,6 +197,7 @@ impl Suite {
             let own_budget = take_int(&mut fields, "budget", path, text)?;
             let own_targets = take_floats(&mut fields, "targets", path, text)?;
             let own_stop = take_float(&mut fields, "stop_at", path, text)?;
+            let only = take_strs(&mut fields, "optimizers", path, text)?;
             let what = format!("objective `{}`", id.as_deref().unwrap_or(kind.name));
             let params = Params::validate(
                 kind.params,
@@ -225,8 +230,10 @@ impl Suite {
                 budget,
                 targets,
                 stop_at,
+                optimizers: Vec::new(),
                 params,
             });
+            selections.push(only);
         }
 
         let kinds = optimizer_kinds();
@@ -264,11 +271,39 @@ impl Suite {
             });
         }
 
-        for opt in optimizers.iter().filter(|o| o.config.needs_gradient()) {
-            if let Some(obj) = objectives.iter().find(|o| !o.objective.has_gradient()) {
+        for (obj, only) in objectives.iter_mut().zip(selections) {
+            obj.optimizers = match only {
+                None => (0..optimizers.len()).collect(),
+                Some((names, line)) => names
+                    .iter()
+                    .map(|n| {
+                        optimizers.iter().position(|o| &o.id == n).ok_or_else(|| {
+                            Error::at(
+                                path,
+                                line,
+                                format!(
+                                    "objective `{}`: `optimizers` names `{n}`, which is not an optimizer id of this suite ({})",
+                                    obj.id,
+                                    optimizers.iter().map(|o| o.id.as_str()).collect::<Vec<_>>().join(", ")
+                                ),
+                            )
+                        })
+                    })
+                    .collect::<Result<Vec<_>>>()?,
+            };
+        }
+        for (i, opt) in optimizers
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| o.config.needs_gradient())
+        {
+            if let Some(obj) = objectives
+                .iter()
+                .find(|o| o.optimizers.contains(&i) && !o.objective.has_gradient())
+            {
                 return Err(opt.params.entry_error(format!(
                     "needs the objective's gradient, but objective `{}` is a black box; \
-                     use gradient-free optimizers there or a separate suite",
+                     leave it out of that objective's `optimizers` list",
                     obj.id
                 )));
             }
@@ -289,8 +324,8 @@ impl Suite {
     /// Every trial, objective-major, in a fixed order.
     pub fn plan(&self) -> Vec<PlannedTrial> {
         let mut plan = Vec::new();
-        for objective in 0..self.objectives.len() {
-            for optimizer in 0..self.optimizers.len() {
+        for (objective, entry) in self.objectives.iter().enumerate() {
+            for &optimizer in &entry.optimizers {
                 for trial in 0..self.trials {
                     plan.push(PlannedTrial {
                         objective,
@@ -416,6 +451,29 @@ fn take_str(fields: &mut RawEntry, key: &str, path: &Path, text: &str) -> Result
                 format!("`{key}`: expected a string, found {}", other.type_str()),
             )),
         },
+    }
+}
+
+fn take_strs(
+    fields: &mut RawEntry,
+    key: &str,
+    path: &Path,
+    text: &str,
+) -> Result<Option<(Vec<String>, usize)>> {
+    match fields.remove(key) {
+        None => Ok(None),
+        Some(v) => {
+            let line = line_of(text, v.span().start);
+            let err = || Error::at(path, line, format!("`{key}`: expected an array of strings"));
+            match v.get_ref() {
+                toml::Value::Array(a) => a
+                    .iter()
+                    .map(|x| x.as_str().map(String::from).ok_or_else(err))
+                    .collect::<Result<Vec<_>>>()
+                    .map(|x| Some((x, line))),
+                _ => Err(err()),
+            }
+        }
     }
 }
 

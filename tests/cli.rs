@@ -387,3 +387,49 @@ fn compare_refuses_different_suites() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("compare results of the same suite"));
 }
+
+#[test]
+fn objectives_can_run_a_subset_of_the_optimizers() {
+    let suite = format!(
+        "{HEAD}[[objective]]\nkind = \"sphere\"\ndim = 2\noptimizers = [\"b\"]\n\
+         [[objective]]\nkind = \"griewank\"\ndim = 2\n\
+         [[optimizer]]\nkind = \"ga\"\nid = \"a\"\n[[optimizer]]\nkind = \"pso\"\nid = \"b\"\n"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("sub.toml"), &suite).unwrap();
+    let out = optbench(&["run", "sub.toml", "-q"], dir.path());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("results/bad/summary.json")).unwrap(),
+    )
+    .unwrap();
+    let cells: Vec<(String, String)> = summary["results"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| {
+            (
+                c["objective"].as_str().unwrap().into(),
+                c["optimizer"].as_str().unwrap().into(),
+            )
+        })
+        .collect();
+    let expected = [
+        ("sphere-2d", "b"),
+        ("griewank-2d", "a"),
+        ("griewank-2d", "b"),
+    ];
+    assert_eq!(cells, expected.map(|(o, p)| (o.to_string(), p.to_string())));
+
+    rejects(
+        &suite.replace("optimizers = [\"b\"]", "optimizers = [\"c\"]"),
+        &[
+            "bad.toml:5:",
+            "names `c`, which is not an optimizer id of this suite (a, b)",
+        ],
+    );
+}
