@@ -428,7 +428,7 @@ fn objectives_can_run_a_subset_of_the_optimizers() {
     rejects(
         &suite.replace("optimizers = [\"b\"]", "optimizers = [\"c\"]"),
         &[
-            "bad.toml:5:",
+            "bad.toml:8:",
             "names `c`, which is not an optimizer id of this suite (a, b)",
         ],
     );
