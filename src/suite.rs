@@ -77,10 +77,14 @@ pub struct ObjectiveEntry {
 }
 
 impl ObjectiveEntry {
-    /// The value at which a trial stops, from `stop_at` and the known optimum.
+    /// The value at which a trial stops, from `stop_at` (in presented units where the
+    /// objective has a presentation, else as an error to the known optimum).
     pub fn stop_value(&self) -> Option<f64> {
-        self.stop_at
-            .map(|s| self.objective.optimum().unwrap_or(0.0) + s)
+        let s = self.stop_at?;
+        Some(match self.objective.presentation() {
+            Some(p) => p.invert(s),
+            None => self.objective.optimum().unwrap_or(0.0) + s,
+        })
     }
 }
 

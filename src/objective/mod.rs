@@ -1,6 +1,7 @@
 //! Black-box objectives. An objective knows its domain and how to evaluate points; it knows
 //! nothing of optimizers, budgets or files.
 
+pub mod fit;
 pub mod functions;
 
 use rand::{Rng, RngExt};
@@ -141,6 +142,28 @@ pub trait Objective: Send + Sync {
     fn presentation(&self) -> Option<Presentation> {
         None
     }
+
+    /// Numbers a reader wants about a final point beyond its value (e.g. a fitted model's
+    /// free-run RMSE on validation data); the report evaluates them once per trial.
+    fn metrics(&self, _x: &[f64]) -> Vec<Metric> {
+        Vec::new()
+    }
+}
+
+/// A named number about a point (see [`Objective::metrics`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Metric {
+    pub name: String,
+    pub value: f64,
+}
+
+impl Metric {
+    pub fn new(name: impl Into<String>, value: f64) -> Self {
+        Metric {
+            name: name.into(),
+            value,
+        }
+    }
 }
 
 /// A monotone map from objective values to the number a reader wants to see.
@@ -154,16 +177,27 @@ pub struct Presentation {
 /// The supported maps.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum PresentationKind {
-    /// The value is J = sum(e^2)/2 over `samples` residuals: show sqrt(2 J / samples).
-    RmseFromHalfSse { samples: usize },
+    /// The value is J = sum(e^2)/2 over `samples` residuals in units of `scale`: show
+    /// `scale * sqrt(2 J / samples)`.
+    RmseFromHalfSse { samples: usize, scale: f64 },
 }
 
 impl Presentation {
     /// The presented number for objective value `f`.
     pub fn apply(&self, f: f64) -> f64 {
         match self.kind {
-            PresentationKind::RmseFromHalfSse { samples } => {
-                (2.0 * f.max(0.0) / samples as f64).sqrt()
+            PresentationKind::RmseFromHalfSse { samples, scale } => {
+                scale * (2.0 * f.max(0.0) / samples as f64).sqrt()
+            }
+        }
+    }
+
+    /// The objective value whose presentation is `shown` (the map is increasing).
+    pub fn invert(&self, shown: f64) -> f64 {
+        match self.kind {
+            PresentationKind::RmseFromHalfSse { samples, scale } => {
+                let r = shown / scale;
+                0.5 * samples as f64 * r * r
             }
         }
     }

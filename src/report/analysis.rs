@@ -10,6 +10,7 @@
 //! the optimum), or the value itself where no optimum is known (fitting costs).
 
 use crate::harness::{TrialRecord, TrialSeed};
+use crate::objective::Metric;
 use crate::stats::{
     Describe, Ert, Friedman, RunToTarget, a12, bootstrap_median_ci, describe, ert, friedman, holm,
     mann_whitney,
@@ -29,6 +30,19 @@ pub struct ObjectiveInfo {
     pub id: String,
     pub dim: usize,
     pub targets: Vec<f64>,
+    /// What the values are (e.g. `train free-run RMSE [mm]`); None: the objective's value.
+    pub label: Option<String>,
+}
+
+/// Metrics of one trial's final point, keyed by (objective, optimizer, trial).
+pub type TrialMetrics = std::collections::BTreeMap<(String, String, usize), Vec<Metric>>;
+
+/// Median and 95 % interval of one metric over a cell's trials.
+#[derive(Debug, Clone, Serialize)]
+pub struct MetricStats {
+    pub name: String,
+    pub stats: Describe,
+    pub median_ci: (f64, f64),
 }
 
 /// The error of a value with respect to an optional optimum.
@@ -61,6 +75,8 @@ pub struct CellStats {
     pub targets: Vec<Ert>,
     pub evaluations: u64,
     pub wall_s: f64,
+    /// Statistics of the objective's metrics at the trials' final points.
+    pub metrics: Vec<MetricStats>,
 }
 
 /// A comparison of two optimizers on one objective.
@@ -80,6 +96,7 @@ pub struct PairTest {
 pub struct ObjectiveStats {
     pub id: String,
     pub dim: usize,
+    pub label: Option<String>,
     pub optimum: Option<f64>,
     pub budget: u64,
     pub targets: Vec<f64>,
@@ -133,6 +150,7 @@ pub fn analyse(
     seed: u64,
     objectives: &[ObjectiveInfo],
     records: &[TrialRecord],
+    metrics: &TrialMetrics,
 ) -> Analysis {
     let mut optimizers: Vec<String> = Vec::new();
     for r in records {
@@ -176,6 +194,7 @@ pub fn analyse(
                     ert(&rt)
                 })
                 .collect();
+            let metric_stats = cell_metrics(seed, &info.id, opt, &runs, metrics);
             fixed_medians.push(
                 fixed
                     .iter()
@@ -196,6 +215,7 @@ pub fn analyse(
                 targets,
                 evaluations: runs.iter().map(|r| r.evaluations).sum(),
                 wall_s: runs.iter().map(|r| r.wall_s).sum(),
+                metrics: metric_stats,
             });
         }
         let mut pairs = Vec::new();
@@ -226,6 +246,7 @@ pub fn analyse(
         out.push(ObjectiveStats {
             id: info.id.clone(),
             dim: info.dim,
+            label: info.label.clone(),
             optimum,
             budget,
             targets: info.targets.clone(),
@@ -251,6 +272,42 @@ pub fn analyse(
         objectives: out,
         friedman,
     }
+}
+
+/// Per metric name (in first-trial order): statistics over the cell's trials.
+fn cell_metrics(
+    seed: u64,
+    objective: &str,
+    optimizer: &str,
+    runs: &[&TrialRecord],
+    metrics: &TrialMetrics,
+) -> Vec<MetricStats> {
+    let per_trial: Vec<&Vec<Metric>> = runs
+        .iter()
+        .filter_map(|r| metrics.get(&(objective.to_string(), optimizer.to_string(), r.trial)))
+        .collect();
+    let Some(first) = per_trial.first() else {
+        return Vec::new();
+    };
+    first
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let values: Vec<f64> = per_trial.iter().map(|t| t[i].value).collect();
+            let mut rng = TrialSeed::derive(
+                seed,
+                &format!("metric:{objective}:{}", m.name),
+                optimizer,
+                0,
+            )
+            .rng(0);
+            MetricStats {
+                name: m.name.clone(),
+                stats: describe(&values),
+                median_ci: bootstrap_median_ci(&values, CI_LEVEL, RESAMPLES, &mut rng),
+            }
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -32,7 +32,24 @@ fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
 pub struct StoredRun {
     pub suite: Suite,
     pub provenance: Provenance,
+    /// The traces as stored (raw objective values).
     pub records: Vec<TrialRecord>,
+    /// The traces in the units a reader sees: values mapped through the objective's
+    /// presentation (a fitting cost becomes an RMSE), optimum then unknown.
+    pub presented: Vec<TrialRecord>,
+    /// Metrics of every trial's final point.
+    pub metrics: analysis::TrialMetrics,
+}
+
+/// `r` with its values mapped by `p`.
+fn present(r: &TrialRecord, p: &crate::objective::Presentation) -> TrialRecord {
+    let mut r = r.clone();
+    r.best = p.apply(r.best);
+    r.optimum = None;
+    for v in r.improvements.iter_mut().chain(r.checkpoints.iter_mut()) {
+        v.1 = p.apply(v.1);
+    }
+    r
 }
 
 impl StoredRun {
@@ -47,10 +64,31 @@ impl StoredRun {
         let suite = Suite::load(&dir.join("suite.toml"))?;
         let provenance: Provenance = read_json(&dir.join("provenance.json"))?;
         let records = read_traces(dir)?;
+        let mut presented = Vec::with_capacity(records.len());
+        let mut metrics = analysis::TrialMetrics::new();
+        for r in &records {
+            let Some(obj) = suite.objectives.iter().find(|o| o.id == r.objective) else {
+                return Err(Error::Input(format!(
+                    "{}: a trace names objective `{}`, which the suite does not have",
+                    dir.display(),
+                    r.objective
+                )));
+            };
+            presented.push(match obj.objective.presentation() {
+                Some(p) => present(r, &p),
+                None => r.clone(),
+            });
+            let m = obj.objective.metrics(&r.best_x);
+            if !m.is_empty() {
+                metrics.insert((r.objective.clone(), r.optimizer.clone(), r.trial), m);
+            }
+        }
         Ok(StoredRun {
             suite,
             provenance,
             records,
+            presented,
+            metrics,
         })
     }
 
@@ -63,6 +101,7 @@ impl StoredRun {
                 id: o.id.clone(),
                 dim: o.objective.dim(),
                 targets: o.targets.clone(),
+                label: o.objective.presentation().map(|p| p.label),
             })
             .collect()
     }
@@ -72,7 +111,8 @@ impl StoredRun {
             &self.suite.name,
             self.provenance.seed,
             &self.objective_infos(),
-            &self.records,
+            &self.presented,
+            &self.metrics,
         )
     }
 }
@@ -144,10 +184,10 @@ fn write_plots(dir: &Path, run: &StoredRun, a: &Analysis) -> Result<()> {
                 .filter(|r| r.optimizer == opt)
                 .collect()
         };
-        let what = if o.optimum.is_some() {
-            "best-so-far error to optimum"
-        } else {
-            "best-so-far value"
+        let what = match (&o.label, o.optimum) {
+            (Some(l), _) => format!("best-so-far {l}"),
+            (None, Some(_)) => "best-so-far error to optimum".into(),
+            (None, None) => "best-so-far value".into(),
         };
         let series: Vec<plots::ConvergenceSeries> = o
             .cells
@@ -160,7 +200,7 @@ fn write_plots(dir: &Path, run: &StoredRun, a: &Analysis) -> Result<()> {
             &dir.join(format!("convergence_{}", o.id)),
             &format!("{}: median and IQR over {n} trials", o.id),
             &series,
-            what,
+            &what,
             all_positive,
         )?;
         let groups: Vec<(String, Vec<f64>)> = o

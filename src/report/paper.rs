@@ -426,8 +426,9 @@ mod tests {
             id: "f_1".into(),
             dim: 1,
             targets: vec![1.0, 0.05],
+            label: None,
         }];
-        analyse("s", 1, &info, &r)
+        analyse("s", 1, &info, &r, &Default::default())
     }
 
     #[test]

@@ -1,0 +1,287 @@
+//! Fitting objectives: the cost of a model's parameters on a recording.
+//!
+//! Data are normalised before fitting (input and output divided by their largest absolute
+//! value on the training record), so one set of parameter bounds serves an actuator in
+//! volts and millimetres and a benchmark in newtons and metres alike; validation data use
+//! the training scales. Costs are J = sum(e^2)/2 (seed eq. 3.8-3.9) in normalised units;
+//! reports present them as RMSE in the recording's units.
+
+use super::{Bounds, Metric, Objective, Presentation, PresentationKind};
+use crate::error::{Error, Result};
+use crate::physics::rbf::{self, Mode, Narx, RbfNet, Regressors};
+use crate::recording::Recording;
+
+/// A recording scaled for fitting.
+#[derive(Debug, Clone)]
+pub struct FitData {
+    pub u: Vec<f64>,
+    pub y: Vec<f64>,
+    /// Physical = normalised * scale.
+    pub u_scale: f64,
+    pub y_scale: f64,
+    /// Unit of y, for labels.
+    pub unit: String,
+}
+
+fn max_abs(v: &[f64]) -> f64 {
+    v.iter().fold(0.0f64, |m, x| m.max(x.abs()))
+}
+
+impl FitData {
+    /// Scales `rec` by its own largest absolute values (or not at all).
+    pub fn new(rec: &Recording, normalize: bool) -> Result<Self> {
+        let (us, ys) = if normalize {
+            (max_abs(&rec.u), max_abs(&rec.y))
+        } else {
+            (1.0, 1.0)
+        };
+        if us == 0.0 || ys == 0.0 {
+            return Err(Error::Input(format!(
+                "{}: the {} is zero everywhere; nothing to fit",
+                rec.name,
+                if us == 0.0 { "input" } else { "output" }
+            )));
+        }
+        Ok(Self::with_scales(rec, us, ys))
+    }
+
+    /// `rec` scaled like `self` (for validation data).
+    pub fn like(&self, rec: &Recording) -> Self {
+        Self::with_scales(rec, self.u_scale, self.y_scale)
+    }
+
+    fn with_scales(rec: &Recording, u_scale: f64, y_scale: f64) -> Self {
+        FitData {
+            u: rec.u.iter().map(|v| v / u_scale).collect(),
+            y: rec.y.iter().map(|v| v / y_scale).collect(),
+            u_scale,
+            y_scale,
+            unit: rec.units[2].clone(),
+        }
+    }
+
+    fn unit_suffix(&self) -> String {
+        if self.unit.is_empty() {
+            String::new()
+        } else {
+            format!(" [{}]", self.unit)
+        }
+    }
+}
+
+/// Max |e| and RMS of `model - measured` from `start`, in physical units.
+fn errors(meas: &[f64], model: &[f64], start: usize, scale: f64) -> (f64, f64) {
+    let e = rbf::fit_errors(meas, model, start);
+    (e.max_abs * scale, e.rms * scale)
+}
+
+/// Fit of a Gaussian RBF NARX network (seed section 3.2) to a recording.
+pub struct RbfFit {
+    net: RbfNet,
+    narx: Narx,
+    mode: Mode,
+    train: FitData,
+    validate: Option<FitData>,
+    regressors: Regressors,
+    bounds: Bounds,
+}
+
+impl RbfFit {
+    /// The fit of `net` with regressors `narx` on `train`, optimised in `mode`; metrics also
+    /// on `validate` when given.
+    pub fn new(
+        train: &Recording,
+        validate: Option<&Recording>,
+        net: RbfNet,
+        narx: Narx,
+        mode: Mode,
+    ) -> Result<Self> {
+        if net.inputs != narx.dim() {
+            return Err(Error::Input(format!(
+                "the network has {} inputs but the regressors give {}",
+                net.inputs,
+                narx.dim()
+            )));
+        }
+        let data = FitData::new(train, true)?;
+        let regressors = Regressors::new(&narx, &data.u, &data.y);
+        let (lo, hi) = regressors.input_ranges();
+        let (ylo, yhi) = regressors.output_range();
+        let (lower, upper) = rbf::param_bounds(&net, &lo, &hi, ylo, yhi);
+        let bounds = Bounds::new(lower, upper).map_err(Error::Input)?;
+        Ok(RbfFit {
+            validate: validate.map(|v| data.like(v)),
+            net,
+            narx,
+            mode,
+            train: data,
+            regressors,
+            bounds,
+        })
+    }
+
+    /// Model output on `d` in `mode`, normalised.
+    fn predict(&self, p: &[f64], d: &FitData, mode: Mode) -> Vec<f64> {
+        let mut out = vec![0.0; d.u.len()];
+        rbf::predict(&self.net, &self.narx, p, &d.u, &d.y, mode, &mut out);
+        out
+    }
+
+    /// Physical model output on the training data (for plots).
+    pub fn simulate_train(&self, p: &[f64], mode: Mode) -> Vec<f64> {
+        self.predict(p, &self.train, mode)
+            .into_iter()
+            .map(|v| v * self.train.y_scale)
+            .collect()
+    }
+}
+
+impl Objective for RbfFit {
+    fn name(&self) -> &str {
+        "rbf"
+    }
+
+    fn bounds(&self) -> &Bounds {
+        &self.bounds
+    }
+
+    fn evaluate(&self, p: &[f64]) -> f64 {
+        match self.mode {
+            Mode::OneStepAhead => self.regressors.cost(&self.net, p),
+            Mode::FreeRun => rbf::cost(
+                &self.net,
+                &self.narx,
+                p,
+                &self.train.u,
+                &self.train.y,
+                Mode::FreeRun,
+            ),
+        }
+    }
+
+    fn value_and_gradient(&self, p: &[f64], grad: &mut [f64]) -> Option<f64> {
+        match self.mode {
+            Mode::OneStepAhead => Some(self.regressors.cost_grad(&self.net, p, grad)),
+            Mode::FreeRun => None,
+        }
+    }
+
+    fn has_gradient(&self) -> bool {
+        matches!(self.mode, Mode::OneStepAhead)
+    }
+
+    fn presentation(&self) -> Option<Presentation> {
+        let mode = match self.mode {
+            Mode::OneStepAhead => "one-step",
+            Mode::FreeRun => "free-run",
+        };
+        Some(Presentation {
+            label: format!("train {mode} RMSE{}", self.train.unit_suffix()),
+            kind: PresentationKind::RmseFromHalfSse {
+                samples: self.train.u.len() - self.narx.start(),
+                scale: self.train.y_scale,
+            },
+        })
+    }
+
+    /// Both modes always: one-step-ahead (measured past outputs, flattering) and free-run
+    /// (the model's own), on training and validation data.
+    fn metrics(&self, p: &[f64]) -> Vec<Metric> {
+        let unit = self.train.unit_suffix();
+        let start = self.narx.start();
+        let mut m = Vec::new();
+        let mut sets = vec![("train", &self.train)];
+        if let Some(v) = &self.validate {
+            sets.push(("validate", v));
+        }
+        for (set, d) in sets {
+            for (mode, name) in [
+                (Mode::OneStepAhead, "one-step"),
+                (Mode::FreeRun, "free-run"),
+            ] {
+                let (max, rms) = errors(&d.y, &self.predict(p, d, mode), start, d.y_scale);
+                m.push(Metric::new(format!("{set} {name} RMSE{unit}"), rms));
+                m.push(Metric::new(format!("{set} {name} max error{unit}"), max));
+            }
+        }
+        m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn eq318_recording(n: usize) -> Recording {
+        let r: Vec<f64> = (0..n)
+            .map(|k| (2.0 * std::f64::consts::PI * 20.0 * k as f64 * 1e-3).sin())
+            .collect();
+        let y = rbf::eq_3_18(&r);
+        Recording::uniform("eq318", 1e-3, r, y).unwrap()
+    }
+
+    #[test]
+    fn costs_are_finite_and_presented_as_rmse() {
+        let rec = eq318_recording(500);
+        let fit = RbfFit::new(
+            &rec,
+            Some(&rec),
+            RbfNet::new(3, 7),
+            Narx::SEED,
+            Mode::FreeRun,
+        )
+        .unwrap();
+        assert_eq!(fit.dim(), 35);
+        let p: Vec<f64> = fit
+            .bounds()
+            .lower()
+            .iter()
+            .zip(fit.bounds().upper())
+            .map(|(l, u)| 0.5 * (l + u))
+            .collect();
+        let j = fit.evaluate(&p);
+        assert!(j.is_finite() && j > 0.0);
+        // The presented RMSE equals the free-run RMSE metric on the training data.
+        let rmse = fit.presentation().unwrap().apply(j);
+        let m = fit.metrics(&p);
+        let free = m
+            .iter()
+            .find(|m| m.name == "train free-run RMSE")
+            .unwrap()
+            .value;
+        assert!(
+            (rmse - free).abs() < 1e-12 * (1.0 + free),
+            "{rmse} vs {free}"
+        );
+        assert_eq!(
+            m.len(),
+            8,
+            "train and validate x one-step and free-run x RMSE and max"
+        );
+        // Hostile parameters: finite.
+        let hostile = vec![f64::MAX; 35];
+        assert!(fit.evaluate(&hostile).is_finite());
+    }
+
+    #[test]
+    fn one_step_mode_has_the_gradient_of_its_cost() {
+        let rec = eq318_recording(300);
+        let fit = RbfFit::new(
+            &rec,
+            None,
+            RbfNet::new(3, 7),
+            Narx::SEED,
+            Mode::OneStepAhead,
+        )
+        .unwrap();
+        assert!(fit.has_gradient());
+        let mut rng = crate::harness::TrialSeed::from_u64(9).rng(0);
+        let mut p = vec![0.0; 35];
+        fit.bounds().sample(&mut rng, &mut p);
+        let mut g = vec![0.0; 35];
+        let j = fit.value_and_gradient(&p, &mut g).unwrap();
+        assert_eq!(j, fit.evaluate(&p));
+        let free = RbfFit::new(&rec, None, RbfNet::new(3, 7), Narx::SEED, Mode::FreeRun).unwrap();
+        assert!(!free.has_gradient());
+    }
+}
