@@ -24,6 +24,7 @@ pub mod registry;
 pub mod report;
 pub mod results;
 pub mod runner;
+pub mod signal;
 pub mod stats;
 pub mod suite;
 
