@@ -1,7 +1,9 @@
 //! The objective and optimizer kinds a suite may name, with their parameter tables.
 
 use crate::error::Error;
+use crate::objective::fit::RbfFit;
 use crate::objective::functions::{Function, TestFunction};
+use crate::objective::source::{SimOptions, Source};
 use crate::objective::{Bounds, Objective};
 use crate::optimizer::OptimizerConfig;
 use crate::optimizer::ga::GaConfig;
@@ -11,6 +13,9 @@ use crate::optimizer::operators::Mutation;
 use crate::optimizer::pso::PsoConfig;
 use crate::optimizer::random_search::RandomSearchConfig;
 use crate::params::{Default as D, Kind, Params, Spec, probability};
+use crate::physics::rbf::{Mode, Narx, RbfNet};
+use crate::recording::Recording;
+use std::path::Path;
 use std::sync::Arc;
 
 /// An objective family a suite can name.
@@ -81,6 +86,132 @@ macro_rules! function_kind {
     };
 }
 
+/// Parameters shared by every fitting objective: where the data come from.
+macro_rules! recording_params {
+    ($($extra:expr),* $(,)?) => {
+        &[
+            Spec {
+                name: "recording",
+                kind: Kind::Text,
+                default: D::Required,
+                help: "CSV path ($OPTBENCH_DATA/..., or relative to the suite), twin:SIGNAL or eq318:SIGNAL",
+            },
+            Spec {
+                name: "validate",
+                kind: Kind::Text,
+                default: D::Derived("none"),
+                help: "held-out recording, same forms (metrics only, never fitted)",
+            },
+            Spec {
+                name: "columns",
+                kind: Kind::Text,
+                default: D::Str("t,u,y"),
+                help: "time, input and output column names of CSV recordings",
+            },
+            Spec {
+                name: "duration",
+                kind: Kind::Float { min: f64::MIN_POSITIVE, max: f64::INFINITY },
+                default: D::Derived("a chirp's own duration"),
+                help: "seconds of simulated recording",
+            },
+            Spec {
+                name: "validate_duration",
+                kind: Kind::Float { min: f64::MIN_POSITIVE, max: f64::INFINITY },
+                default: D::Derived("a chirp's own duration"),
+                help: "seconds of simulated validation recording",
+            },
+            Spec {
+                name: "dt",
+                kind: Kind::Float { min: f64::MIN_POSITIVE, max: 1.0 },
+                default: D::Float(1e-3),
+                help: "sampling interval of simulated recordings [s]",
+            },
+            Spec {
+                name: "twin",
+                kind: Kind::Text,
+                default: D::Str(""),
+                help: "piezo-twin overrides, e.g. \"mode=off,creep=on\"",
+            },
+            Spec {
+                name: "seed",
+                kind: Kind::Int { min: 0, max: i64::MAX },
+                default: D::Int(1),
+                help: "noise seed of simulated recordings",
+            },
+            $($extra),*
+        ]
+    };
+}
+
+/// The training and (optional) validation recordings named by a fitting objective.
+fn recordings(p: &Params) -> Result<(Recording, Option<Recording>), Error> {
+    let base = p.file().parent().unwrap_or(Path::new(".")).to_path_buf();
+    let sim = |duration: Option<f64>| SimOptions {
+        duration,
+        dt: p.float("dt"),
+        twin: p.str("twin").to_string(),
+        seed: p.int("seed") as u64,
+    };
+    let load = |key: &str, duration: Option<f64>| -> Result<Recording, Error> {
+        let spec = p.str(key);
+        Source::parse(spec, &base, p.str("columns"), sim(duration))
+            .and_then(|s| s.load())
+            .map_err(|e| p.error(key, e))
+    };
+    let train = load("recording", p.opt_float("duration"))?;
+    let validate = match p.opt_str("validate") {
+        Some(_) => Some(load("validate", p.opt_float("validate_duration"))?),
+        None => None,
+    };
+    Ok((train, validate))
+}
+
+const RBF_PARAMS: &[Spec] = recording_params![
+    Spec {
+        name: "hidden",
+        kind: POSITIVE_INT,
+        default: D::Int(7),
+        help: "hidden Gaussian nodes (seed: 7; also tried 9)",
+    },
+    Spec {
+        name: "input_lags",
+        kind: POSITIVE_INT,
+        default: D::Int(2),
+        help: "regressors r(k)..r(k-input_lags+1) (seed: 2; its 7-input variant: 4)",
+    },
+    Spec {
+        name: "output_lags",
+        kind: Kind::Int {
+            min: 0,
+            max: i64::MAX
+        },
+        default: D::Int(1),
+        help: "regressors y(k-1)..y(k-output_lags) (seed: 1; its 7-input variant: 3)",
+    },
+    Spec {
+        name: "mode",
+        kind: Kind::Choice(&["one-step", "free-run"]),
+        default: D::Str("one-step"),
+        help: "cost on one-step-ahead predictions (measured past outputs, as the seed) or on a free-run simulation",
+    },
+];
+
+fn build_rbf(p: &Params) -> Result<Arc<dyn Objective>, Error> {
+    let (train, validate) = recordings(p)?;
+    let narx = Narx {
+        input_lags: p.usize("input_lags"),
+        output_lags: p.usize("output_lags"),
+    };
+    let net = RbfNet::new(narx.dim(), p.usize("hidden"));
+    let mode = match p.str("mode") {
+        "free-run" => Mode::FreeRun,
+        _ => Mode::OneStepAhead,
+    };
+    let fit =
+        RbfFit::new(&train, validate.as_ref(), net, narx, mode).map_err(|e| p.entry_error(e))?;
+    Ok(Arc::new(fit))
+}
+
 /// Every objective kind.
 pub fn objective_kinds() -> Vec<ObjectiveKind> {
     use TestFunction::*;
@@ -91,6 +222,12 @@ pub fn objective_kinds() -> Vec<ObjectiveKind> {
         function_kind!(Rastrigin, Rastrigin.describe()),
         function_kind!(Rosenbrock, Rosenbrock.describe()),
         function_kind!(Ackley, Ackley.describe()),
+        ObjectiveKind {
+            name: "rbf",
+            help: "fit a Gaussian RBF NARX network (seed 3.2, 3-7-1 = 35 parameters) to a recording; reports one-step and free-run errors",
+            params: RBF_PARAMS,
+            build: build_rbf,
+        },
     ]
 }
 

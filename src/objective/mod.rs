@@ -3,6 +3,7 @@
 
 pub mod fit;
 pub mod functions;
+pub mod source;
 
 use rand::{Rng, RngExt};
 

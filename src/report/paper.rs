@@ -5,14 +5,6 @@ use super::analysis::{ALPHA, Analysis, ObjectiveStats};
 use super::table::{markdown, sig};
 use std::fmt::Write;
 
-fn error_label(o: &ObjectiveStats) -> &'static str {
-    if o.optimum.is_some() {
-        "error to optimum"
-    } else {
-        "final value"
-    }
-}
-
 /// Marker and text for cell `i` against the best of its objective.
 fn versus_best(o: &ObjectiveStats, i: usize) -> (bool, String) {
     match o.versus_best(i) {
@@ -147,6 +139,42 @@ pub fn fixed_budget_markdown(a: &Analysis) -> String {
     )
 }
 
+/// Metrics at the trials' final points (e.g. free-run and validation RMSE of a fitted
+/// model): per objective, optimizers x metrics, median [95 % CI].
+pub fn metrics_markdown(a: &Analysis) -> String {
+    let mut out = String::new();
+    for o in a
+        .objectives
+        .iter()
+        .filter(|o| o.cells.iter().any(|c| !c.metrics.is_empty()))
+    {
+        let names: Vec<&str> = o.cells[0].metrics.iter().map(|m| m.name.as_str()).collect();
+        let mut header = vec!["optimizer"];
+        header.extend(&names);
+        let rows: Vec<Vec<String>> = o
+            .cells
+            .iter()
+            .map(|c| {
+                let mut r = vec![c.optimizer.clone()];
+                r.extend(c.metrics.iter().map(|m| {
+                    format!(
+                        "{} [{}, {}]",
+                        sig(m.stats.median, 3),
+                        sig(m.median_ci.0, 3),
+                        sig(m.median_ci.1, 3)
+                    )
+                }));
+                r
+            })
+            .collect();
+        let right: Vec<bool> = (0..header.len()).map(|i| i > 0).collect();
+        writeln!(out, "**{}** (median [95% CI] over trials)\n", o.id).unwrap();
+        out += &markdown(&header, &rows, &right);
+        out.push('\n');
+    }
+    out
+}
+
 /// Every pairwise test.
 pub fn pairwise_markdown(a: &Analysis) -> String {
     let mut rows = Vec::new();
@@ -208,15 +236,32 @@ pub fn report_markdown(a: &Analysis) -> String {
     writeln!(s, "# optbench report: {} (seed {})\n", a.suite, a.seed).unwrap();
     writeln!(
         s,
-        "Final {} per trial. Median with a 95 % percentile-bootstrap interval \
-         ({} resamples, seeded); quartiles are type 7. Bold: lowest median. \
+        "Each trial counts with its final best: the error to the optimum where the optimum is \
+         known, else the value as labelled below. Median with a 95 % percentile-bootstrap \
+         interval ({} resamples, seeded); quartiles are type 7. Bold: lowest median. \
          'vs best': two-sided Mann-Whitney U against the best, Holm-corrected over all pairs \
          of the objective, and A12 = P(this > best); * marks p < {ALPHA}.\n",
-        a.objectives.first().map(error_label).unwrap_or("error"),
         super::analysis::RESAMPLES
     )
     .unwrap();
+    let labelled: Vec<String> = a
+        .objectives
+        .iter()
+        .filter_map(|o| o.label.as_ref().map(|l| format!("- `{}`: {l}", o.id)))
+        .collect();
+    if !labelled.is_empty() {
+        s += "Values shown, where not an error to a known optimum:\n\n";
+        s += &labelled.join("\n");
+        s += "\n\n";
+    }
     s += &summary_markdown(a);
+    let metrics = metrics_markdown(a);
+    if !metrics.is_empty() {
+        s += "\n## Model metrics at the final points\n\n\
+              One-step-ahead predictions use the measured past outputs and flatter a model; \
+              free-run simulations use the model's own. Validation data are never fitted.\n\n";
+        s += &metrics;
+    }
     s += "\n## Average ranks\n\n";
     s += &ranks_markdown(a);
     s += "\n## Fixed budget\n\n";
@@ -381,7 +426,32 @@ pub fn csv_tables(a: &Analysis) -> Vec<(&'static str, String)> {
             .unwrap();
         }
     }
+    let mut metrics = String::from(
+        "objective,optimizer,metric,median,median_ci_low,median_ci_high,q1,q3,min,max\n",
+    );
+    for o in &a.objectives {
+        for c in &o.cells {
+            for m in &c.metrics {
+                writeln!(
+                    metrics,
+                    "{},{},{},{},{},{},{},{},{},{}",
+                    csv_field(&o.id),
+                    csv_field(&c.optimizer),
+                    csv_field(&m.name),
+                    num(m.stats.median),
+                    num(m.median_ci.0),
+                    num(m.median_ci.1),
+                    num(m.stats.q1),
+                    num(m.stats.q3),
+                    num(m.stats.min),
+                    num(m.stats.max)
+                )
+                .unwrap();
+            }
+        }
+    }
     vec![
+        ("metrics.csv", metrics),
         ("summary.csv", summary),
         ("pairwise.csv", pairs),
         ("ert.csv", ert),

@@ -1,0 +1,117 @@
+//! Where a fitting objective's recording comes from, as written in suites and on the
+//! command line:
+//!
+//! - a CSV file: `$OPTBENCH_DATA/boucwen-benchmark/test_multisine.csv` (`$OPTBENCH_DATA`
+//!   expands to [`data_dir`]), or a path relative to the suite file's folder; columns are
+//!   picked by name;
+//! - `twin:<signal>`: the piezo twin driven by a signal (see [`crate::signal`]), simulated
+//!   from a fixed noise seed, so a suite regenerates the same recording every time;
+//! - `eq318:<signal>`: the seed's numerical identification example (eq. 3.18).
+
+use crate::error::{Error, Result};
+use crate::physics::rbf;
+use crate::recording::{Columns, ReadOptions, Recording, data_dir};
+use crate::signal::Signal;
+use std::path::{Path, PathBuf};
+
+/// Options that apply to simulated sources.
+#[derive(Debug, Clone)]
+pub struct SimOptions {
+    /// Seconds of signal (chirps carry their own duration when this is None).
+    pub duration: Option<f64>,
+    /// Sampling interval in seconds (1 ms, as in the seed).
+    pub dt: f64,
+    /// Twin overrides, e.g. `mode=off,creep=on`.
+    pub twin: String,
+    /// Noise seed of the twin.
+    pub seed: u64,
+}
+
+impl Default for SimOptions {
+    fn default() -> Self {
+        SimOptions {
+            duration: None,
+            dt: 1e-3,
+            twin: String::new(),
+            seed: 1,
+        }
+    }
+}
+
+/// A parsed recording source.
+#[derive(Debug, Clone)]
+pub enum Source {
+    Csv { path: PathBuf, columns: Columns },
+    Twin { signal: Signal, opts: SimOptions },
+    Eq318 { signal: Signal, opts: SimOptions },
+}
+
+/// Expands a leading `$OPTBENCH_DATA` and resolves relative paths against `base`.
+pub fn resolve_path(spec: &str, base: &Path) -> PathBuf {
+    if let Some(rest) = spec.strip_prefix("$OPTBENCH_DATA") {
+        return data_dir().join(rest.trim_start_matches(['/', '\\']));
+    }
+    let p = PathBuf::from(spec);
+    if p.is_absolute() { p } else { base.join(p) }
+}
+
+fn duration_of(signal: &Signal, opts: &SimOptions, spec: &str) -> Result<f64> {
+    match (opts.duration, signal) {
+        (Some(d), _) if d > 0.0 && d.is_finite() => Ok(d),
+        (Some(d), _) => Err(Error::Input(format!("`{spec}`: duration {d} must be > 0"))),
+        (None, Signal::Chirp { duration, .. }) => Ok(*duration),
+        (None, _) => Err(Error::Input(format!(
+            "`{spec}`: give a duration (seconds) for this signal"
+        ))),
+    }
+}
+
+impl Source {
+    /// Parses `spec`; file paths are resolved against `base` (the suite's folder).
+    pub fn parse(spec: &str, base: &Path, columns: &str, opts: SimOptions) -> Result<Source> {
+        if let Some(sig) = spec.strip_prefix("twin:") {
+            let signal = Signal::parse(sig)?;
+            duration_of(&signal, &opts, spec)?;
+            return Ok(Source::Twin { signal, opts });
+        }
+        if let Some(sig) = spec.strip_prefix("eq318:") {
+            let signal = Signal::parse(sig)?;
+            duration_of(&signal, &opts, spec)?;
+            return Ok(Source::Eq318 { signal, opts });
+        }
+        Ok(Source::Csv {
+            path: resolve_path(spec, base),
+            columns: Columns::parse(columns)?,
+        })
+    }
+
+    /// The recording (read, or simulated deterministically).
+    pub fn load(&self) -> Result<Recording> {
+        match self {
+            Source::Csv { path, columns } => {
+                if !path.exists() {
+                    return Err(Error::Input(format!(
+                        "{}: no such file (data sets are read from $OPTBENCH_DATA, now {})",
+                        path.display(),
+                        data_dir().display()
+                    )));
+                }
+                Recording::read_csv(path, columns, &ReadOptions::default())
+            }
+            Source::Twin { signal, opts } => {
+                let d = duration_of(signal, opts, "twin")?;
+                let u = signal.sample(opts.dt, d);
+                twin_recording(signal, u, opts)
+            }
+            Source::Eq318 { signal, opts } => {
+                let d = duration_of(signal, opts, "eq318")?;
+                let r = signal.sample(opts.dt, d);
+                let y = rbf::eq_3_18(&r);
+                Recording::uniform(format!("eq. 3.18 driven by {signal}"), opts.dt, r, y)
+            }
+        }
+    }
+}
+fn twin_recording(_s: &Signal, _u: Vec<f64>, _o: &SimOptions) -> Result<Recording> {
+    Err(Error::Input("twin not yet available".into()))
+}
