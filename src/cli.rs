@@ -25,6 +25,8 @@ pub enum Command {
     /// Regenerate the report (tables, plots, IOHprofiler export) of a results folder from
     /// its stored traces; with two folders of the same suite, compare them.
     Report(ReportArgs),
+    /// Fit one model to one recording with one optimizer; numbers and figures in --out.
+    Fit(FitArgs),
     /// List objectives and optimizers with their parameters and defaults.
     List,
 }
@@ -58,6 +60,39 @@ pub struct ReportArgs {
     pub other: Option<PathBuf>,
 }
 
+#[derive(clap::Args, Debug)]
+pub struct FitArgs {
+    /// Training recording: a CSV file, twin:SIGNAL or eq318:SIGNAL (see `optbench list`).
+    #[arg(long)]
+    pub recording: String,
+    /// Held-out recording (same forms), never fitted.
+    #[arg(long)]
+    pub validate: Option<String>,
+    /// Model to fit (a fitting objective of `optbench list`, e.g. bouc-wen or rbf).
+    #[arg(long)]
+    pub model: String,
+    /// Optimizer (ga, pso, msga, bp, random).
+    #[arg(long, default_value = "msga")]
+    pub optimizer: String,
+    /// Time, input and output column names of CSV recordings.
+    #[arg(long, default_value = "t,u,y")]
+    pub columns: String,
+    /// Function evaluations (default: the seed's 200 individuals x 150 iterations).
+    #[arg(long, default_value_t = 30_000)]
+    pub budget: u64,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Model parameter, repeatable: --param mode=free-run --param hidden=9.
+    #[arg(long = "param", value_name = "KEY=VALUE")]
+    pub params: Vec<String>,
+    /// Optimizer parameter, repeatable: --opt population=100.
+    #[arg(long = "opt", value_name = "KEY=VALUE")]
+    pub opt: Vec<String>,
+    /// Output folder (default: results/fit-MODEL-OPTIMIZER).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
 /// Entry point: returns the process exit code.
 pub fn main() -> i32 {
     let cli = Cli::parse();
@@ -82,6 +117,27 @@ fn dispatch(cli: Cli) -> Result<()> {
                     println!("\nreport: {}", args.results.join("report.md").display());
                 }
             }
+            Ok(())
+        }
+        Command::Fit(a) => {
+            let out = a.out.clone().unwrap_or_else(|| {
+                PathBuf::from("results").join(format!("fit-{}-{}", a.model, a.optimizer))
+            });
+            print!(
+                "{}",
+                crate::fitting::run_fit(&crate::fitting::FitRequest {
+                    model: a.model,
+                    optimizer: a.optimizer,
+                    recording: a.recording,
+                    validate: a.validate,
+                    columns: a.columns,
+                    budget: a.budget,
+                    seed: a.seed,
+                    model_params: a.params,
+                    optimizer_params: a.opt,
+                    out,
+                })?
+            );
             Ok(())
         }
         Command::List => {

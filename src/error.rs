@@ -18,9 +18,13 @@ pub enum Error {
 }
 
 impl Error {
-    /// An input error located in `file` at `line`.
+    /// An input error located in `file` at `line` (line 0: no line, e.g. the command line).
     pub fn at(file: &Path, line: usize, msg: impl std::fmt::Display) -> Self {
-        Error::Input(format!("{}:{line}: {msg}", file.display()))
+        if line == 0 {
+            Error::Input(format!("{}: {msg}", file.display()))
+        } else {
+            Error::Input(format!("{}:{line}: {msg}", file.display()))
+        }
     }
 
     /// An I/O error with a description of what was being done.

@@ -14,6 +14,7 @@
 
 pub mod cli;
 pub mod error;
+pub mod fitting;
 pub mod harness;
 pub mod objective;
 pub mod optimizer;

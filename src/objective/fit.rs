@@ -69,6 +69,16 @@ impl FitData {
     }
 }
 
+/// What `optbench fit` shows of a fitting objective, in the recording's units.
+pub trait FitView {
+    /// The training recording and the validation one, if any.
+    fn recordings(&self) -> (&Recording, Option<&Recording>);
+    /// Model outputs at parameters `p` on the training (or validation) recording, labelled.
+    fn outputs(&self, p: &[f64], validate: bool) -> Vec<(String, Vec<f64>)>;
+    /// Parameters by name, in physical units where they have them.
+    fn named_params(&self, p: &[f64]) -> Vec<(String, f64)>;
+}
+
 /// Max |e| and RMS of `model - measured` from `start`, in physical units.
 fn errors(meas: &[f64], model: &[f64], start: usize, scale: f64) -> (f64, f64) {
     let e = rbf::fit_errors(meas, model, start);
@@ -82,6 +92,7 @@ pub struct RbfFit {
     mode: Mode,
     train: FitData,
     validate: Option<FitData>,
+    recordings: (Recording, Option<Recording>),
     regressors: Regressors,
     bounds: Bounds,
 }
@@ -111,6 +122,7 @@ impl RbfFit {
         let bounds = Bounds::new(lower, upper).map_err(Error::Input)?;
         Ok(RbfFit {
             validate: validate.map(|v| data.like(v)),
+            recordings: (train.clone(), validate.cloned()),
             net,
             narx,
             mode,
@@ -126,13 +138,54 @@ impl RbfFit {
         rbf::predict(&self.net, &self.narx, p, &d.u, &d.y, mode, &mut out);
         out
     }
+}
 
-    /// Physical model output on the training data (for plots).
-    pub fn simulate_train(&self, p: &[f64], mode: Mode) -> Vec<f64> {
-        self.predict(p, &self.train, mode)
-            .into_iter()
-            .map(|v| v * self.train.y_scale)
-            .collect()
+impl FitView for RbfFit {
+    fn recordings(&self) -> (&Recording, Option<&Recording>) {
+        (&self.recordings.0, self.recordings.1.as_ref())
+    }
+
+    fn outputs(&self, p: &[f64], validate: bool) -> Vec<(String, Vec<f64>)> {
+        let d = if validate {
+            match &self.validate {
+                Some(v) => v,
+                None => return Vec::new(),
+            }
+        } else {
+            &self.train
+        };
+        [
+            (Mode::OneStepAhead, "RBF one-step"),
+            (Mode::FreeRun, "RBF free-run"),
+        ]
+        .into_iter()
+        .map(|(mode, label)| {
+            let y = self
+                .predict(p, d, mode)
+                .into_iter()
+                .map(|v| v * d.y_scale)
+                .collect();
+            (label.to_string(), y)
+        })
+        .collect()
+    }
+
+    /// Centres, widths and weights in normalised units (inputs / u_scale, outputs / y_scale).
+    fn named_params(&self, p: &[f64]) -> Vec<(String, f64)> {
+        let (h, i) = (self.net.hidden, self.net.inputs);
+        let mut v = Vec::with_capacity(p.len());
+        for j in 0..h {
+            for k in 0..i {
+                v.push((format!("c{}_{}", j + 1, k + 1), p[j * i + k]));
+            }
+        }
+        for j in 0..h {
+            v.push((format!("b{}", j + 1), p[h * i + j]));
+        }
+        for j in 0..h {
+            v.push((format!("w{}", j + 1), p[h * i + h + j]));
+        }
+        v
     }
 }
 
@@ -182,6 +235,10 @@ impl Objective for RbfFit {
                 scale: self.train.y_scale,
             },
         })
+    }
+
+    fn as_fit(&self) -> Option<&dyn FitView> {
+        Some(self)
     }
 
     /// Both modes always: one-step-ahead (measured past outputs, flattering) and free-run

@@ -149,6 +149,12 @@ pub trait Objective: Send + Sync {
     fn metrics(&self, _x: &[f64]) -> Vec<Metric> {
         Vec::new()
     }
+
+    /// The fitting view of objectives that fit a model to a recording (for `optbench fit`
+    /// plots and parameter tables); `None` for other objectives.
+    fn as_fit(&self) -> Option<&dyn fit::FitView> {
+        None
+    }
 }
 
 /// A named number about a point (see [`Objective::metrics`]).

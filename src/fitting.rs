@@ -1,0 +1,234 @@
+//! `optbench fit`: one fit of a model to a recording with one optimizer, with the numbers
+//! and figures a reader checks first (seed Fig. 3.5/3.6): RMSE and max error on training and
+//! validation data in the recording's units, the fitted parameters, measured against model
+//! over time with the error below, the input-output loops and the convergence curve.
+//!
+//! Flags become the same parameter tables as suites use (`optbench list`), so checks and
+//! messages are the same.
+
+use crate::error::{Error, Result};
+use crate::harness::{TrialRecord, TrialSeed, TrialSpec, run_trial};
+use crate::objective::Objective;
+use crate::params::{Origin, Params};
+use crate::registry::{objective_kinds, optimizer_kinds};
+use crate::report::{plots, table::sig};
+use crate::results::atomic_write;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// What to fit, as given on the command line.
+#[derive(Debug, Clone)]
+pub struct FitRequest {
+    pub model: String,
+    pub optimizer: String,
+    pub recording: String,
+    pub validate: Option<String>,
+    pub columns: String,
+    pub budget: u64,
+    pub seed: u64,
+    /// Extra model parameters (`key=value`, values in TOML syntax).
+    pub model_params: Vec<String>,
+    /// Extra optimizer parameters.
+    pub optimizer_params: Vec<String>,
+    pub out: PathBuf,
+}
+
+/// A `key=value` flag value as a TOML value (numbers and booleans typed, else a string).
+fn toml_value(v: &str) -> toml::Value {
+    toml::from_str::<toml::Table>(&format!("v = {v}"))
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(v.to_string()))
+}
+
+fn pairs(
+    flag: &str,
+    items: &[String],
+    into: &mut BTreeMap<String, (toml::Value, usize)>,
+) -> Result<()> {
+    for item in items {
+        let (k, v) = item
+            .split_once('=')
+            .ok_or_else(|| Error::Input(format!("{flag} {item}: expected key=value")))?;
+        into.insert(k.trim().to_string(), (toml_value(v.trim()), 0));
+    }
+    Ok(())
+}
+
+fn origin(what: String) -> Origin {
+    Origin {
+        file: PathBuf::from("command line"),
+        line: 0,
+        what,
+    }
+}
+
+/// The fit's stored summary (`fit.json`).
+#[derive(Debug, Serialize)]
+struct FitSummary<'a> {
+    model: &'a str,
+    optimizer: &'a str,
+    recording: String,
+    validate: Option<String>,
+    seed: u64,
+    budget: u64,
+    evaluations: u64,
+    cost: f64,
+    params: Vec<(String, f64)>,
+    metrics: Vec<crate::objective::Metric>,
+    wall_s: f64,
+}
+
+/// Runs the fit, writes its folder, and returns the text to print.
+pub fn run_fit(req: &FitRequest) -> Result<String> {
+    let kinds = objective_kinds();
+    let fit_kinds: Vec<&str> = kinds
+        .iter()
+        .filter(|k| k.params.iter().any(|p| p.name == "recording"))
+        .map(|k| k.name)
+        .collect();
+    let kind = kinds
+        .iter()
+        .find(|k| k.name == req.model && fit_kinds.contains(&k.name))
+        .ok_or_else(|| {
+            Error::Input(format!(
+                "--model {}: not a fitting model; valid: {}",
+                req.model,
+                fit_kinds.join(", ")
+            ))
+        })?;
+    let mut given = BTreeMap::new();
+    given.insert(
+        "recording".into(),
+        (toml::Value::String(req.recording.clone()), 0),
+    );
+    if let Some(v) = &req.validate {
+        given.insert("validate".into(), (toml::Value::String(v.clone()), 0));
+    }
+    given.insert(
+        "columns".into(),
+        (toml::Value::String(req.columns.clone()), 0),
+    );
+    pairs("--param", &req.model_params, &mut given)?;
+    let params = Params::validate(
+        kind.params,
+        &given,
+        origin(format!("--model {}", kind.name)),
+    )?;
+    let objective: Arc<dyn Objective> = (kind.build)(&params)?;
+    let view = objective
+        .as_fit()
+        .ok_or_else(|| Error::Input(format!("--model {}: not a fitting model", req.model)))?;
+
+    let okinds = optimizer_kinds();
+    let okind = okinds
+        .iter()
+        .find(|k| k.name == req.optimizer)
+        .ok_or_else(|| {
+            Error::Input(format!(
+                "--optimizer {}: unknown; valid: {}",
+                req.optimizer,
+                okinds.iter().map(|k| k.name).collect::<Vec<_>>().join(", ")
+            ))
+        })?;
+    let mut ogiven = BTreeMap::new();
+    pairs("--opt", &req.optimizer_params, &mut ogiven)?;
+    let oparams = Params::validate(
+        okind.params,
+        &ogiven,
+        origin(format!("--optimizer {}", okind.name)),
+    )?;
+    let optimizer = (okind.build)(&oparams)?;
+    if optimizer.needs_gradient() && !objective.has_gradient() {
+        return Err(Error::Input(format!(
+            "--optimizer {} needs a gradient, which --model {} does not have here",
+            okind.name, kind.name
+        )));
+    }
+
+    let record = run_trial(TrialSpec {
+        objective_id: &req.model,
+        optimizer_id: &req.optimizer,
+        trial: 0,
+        objective: Arc::clone(&objective),
+        optimizer: optimizer.as_ref(),
+        budget: req.budget,
+        stop_value: None,
+        seed: TrialSeed::derive(req.seed, &req.model, &req.optimizer, 0),
+    });
+
+    std::fs::create_dir_all(&req.out)
+        .map_err(|e| Error::io(format!("creating {}", req.out.display()), e))?;
+    let metrics = objective.metrics(&record.best_x);
+    let named = view.named_params(&record.best_x);
+    let (train, validate) = view.recordings();
+    let summary = FitSummary {
+        model: &req.model,
+        optimizer: &req.optimizer,
+        recording: train.name.clone(),
+        validate: validate.map(|v| v.name.clone()),
+        seed: req.seed,
+        budget: req.budget,
+        evaluations: record.evaluations,
+        cost: record.best,
+        params: named.clone(),
+        metrics: metrics.clone(),
+        wall_s: record.wall_s,
+    };
+    let mut json = serde_json::to_vec_pretty(&summary).expect("serialisable");
+    json.push(b'\n');
+    atomic_write(&req.out.join("fit.json"), &json)?;
+    let mut line = serde_json::to_vec(&record).expect("serialisable");
+    line.push(b'\n');
+    atomic_write(&req.out.join("trace.jsonl"), &line)?;
+    write_figures(&req.out, objective.as_ref(), &record)?;
+
+    let mut text = format!(
+        "{} fitted by {} to {} ({} evaluations, {:.1} s)\n\n",
+        req.model, req.optimizer, train.name, record.evaluations, record.wall_s
+    );
+    for m in &metrics {
+        text += &format!("  {:<34} {}\n", m.name, sig(m.value, 4));
+    }
+    if named.len() <= 12 {
+        text += "\nparameters:\n";
+        for (k, v) in &named {
+            text += &format!("  {k:<10} {}\n", sig(*v, 6));
+        }
+    }
+    text += &format!("\nfit folder: {}\n", req.out.display());
+    Ok(text)
+}
+
+fn write_figures(dir: &Path, objective: &dyn Objective, record: &TrialRecord) -> Result<()> {
+    let Some(view) = objective.as_fit() else {
+        return Ok(());
+    };
+    let label = objective
+        .presentation()
+        .map(|p| p.label)
+        .unwrap_or_else(|| "cost".into());
+    let mut shown = record.clone();
+    if let Some(p) = objective.presentation() {
+        shown.best = p.apply(shown.best);
+        for v in shown
+            .improvements
+            .iter_mut()
+            .chain(shown.checkpoints.iter_mut())
+        {
+            v.1 = p.apply(v.1);
+        }
+    }
+    shown.optimum = None;
+    plots::convergence(
+        &dir.join("convergence"),
+        &format!("{} by {}: convergence", record.objective, record.optimizer),
+        &[plots::convergence_series(&record.optimizer, &[&shown])],
+        &format!("best-so-far {label}"),
+        true,
+    )?;
+    let _ = view;
+    Ok(())
+}
