@@ -1,4 +1,16 @@
 //! Physics models of piezo actuators, shared by the twin (simulation), the fitting
 //! objectives, diagnosis and control: one implementation of each model.
+//!
+//! - [`bouc_wen`]: the seed's Bouc-Wen hysteresis model, stepped exactly (`n = 1`) or by RK4
+//!   in the input, with a free-run simulation and the fitting cost.
+//! - [`linear`]: linear blocks (structural mode, low-pass, creep chain, delay), exactly
+//!   discretised, each with a one-step API.
+//! - [`rbf`]: the Gaussian RBF network, its NARX model (one-step and free-run) and the
+//!   back-propagation baseline.
+//! - [`twin`]: the simulated PZBA-00030-like actuator, a switchable chain of the above plus a
+//!   drive amplifier and a sensor.
 
+pub mod bouc_wen;
+pub mod linear;
 pub mod rbf;
+pub mod twin;
