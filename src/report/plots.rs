@@ -1,4 +1,6 @@
-//! Paper figures: convergence curves, box plots of final values and runtime ECDFs.
+//! Paper figures: convergence curves, box plots of final values and runtime ECDFs; for a
+//! fitted hysteresis model, its output and error over time and its loops in the
+//! input-output plane.
 //!
 //! Data in, files out: the caller passes the series (built with [`convergence_series`] and
 //! [`runtimes`] from trial records, or from anything else) and a path stem; every figure is
@@ -27,6 +29,7 @@ use crate::error::{Error, Result};
 use crate::harness::TrialRecord;
 use crate::results::atomic_write;
 use crate::stats::quantile_sorted;
+use plotters::chart::SeriesAnno;
 use plotters::coord::Shift;
 use plotters::coord::cartesian::Cartesian2d;
 use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint, Ranged};
@@ -228,11 +231,25 @@ impl Axis {
         }
         let span = hi - lo;
         (a.lo, a.hi) = (lo - pad * span, hi + pad * span);
-        (a.ticks, a.minor) = if log {
-            log_ticks(a.lo, a.hi, max_ticks)
+        a.retick(max_ticks);
+        a
+    }
+
+    /// Ticks for the current range.
+    fn retick(&mut self, max_ticks: usize) {
+        (self.ticks, self.minor) = if self.log {
+            log_ticks(self.lo, self.hi, max_ticks)
         } else {
-            linear_ticks(a.lo, a.hi, max_ticks)
+            linear_ticks(self.lo, self.hi, max_ticks)
         };
+    }
+
+    /// The axis stretched upwards so its current range fills only the lower `1 - frac` of
+    /// the plot (room for a legend above the data).
+    fn with_headroom(&self, frac: f64, max_ticks: usize) -> Axis {
+        let mut a = self.clone();
+        a.hi = a.lo + (a.hi - a.lo) / (1.0 - frac);
+        a.retick(max_ticks);
         a
     }
 
@@ -451,11 +468,21 @@ fn log_ticks(lo: f64, hi: f64, max_ticks: usize) -> (Vec<f64>, Vec<f64>) {
 type DrawResult<T = ()> = std::result::Result<T, Box<dyn std::error::Error + Send + Sync>>;
 type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<AxisCoord, AxisCoord>>;
 
-/// Pixel scale: 1 for SVG, [`SUPERSAMPLE`] for the PNG's large canvas.
+/// Pixel scale (1 for SVG, [`SUPERSAMPLE`] for the PNG's large canvas) and the kind of
+/// canvas, for what plotters draws differently on a bitmap (see [`stroke`]).
 #[derive(Debug, Clone, Copy)]
-struct Scale(u32);
+struct Scale(u32, Canvas);
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Canvas {
+    Vector,
+    Bitmap,
+}
 
 impl Scale {
+    const SVG: Scale = Scale(1, Canvas::Vector);
+    const PNG: Scale = Scale(SUPERSAMPLE, Canvas::Bitmap);
+
     fn u(self, v: u32) -> u32 {
         v * self.0
     }
@@ -509,7 +536,7 @@ fn render(stem: &Path, fig: &impl Figure) -> Result<()> {
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (WIDTH, HEIGHT)).into_drawing_area();
-        fig.draw(&root, Scale(1))
+        fig.draw(&root, Scale::SVG)
             .and_then(|()| Ok(root.present()?))
             .map_err(|e| draw_error(&svg_path, &*e))?;
     }
@@ -519,7 +546,7 @@ fn render(stem: &Path, fig: &impl Figure) -> Result<()> {
     let mut big = vec![255u8; (bw * bh * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut big, (bw, bh)).into_drawing_area();
-        fig.draw(&root, Scale(SUPERSAMPLE))
+        fig.draw(&root, Scale::PNG)
             .and_then(|()| Ok(root.present()?))
             .map_err(|e| draw_error(&png_path, &*e))?;
     }
@@ -613,6 +640,91 @@ where
     Ok((y_area, right))
 }
 
+/// Height under a plot for x tick labels (`x_tick_h` logical pixels high) and the x axis
+/// label, in backend pixels.
+fn x_label_area(s: Scale, x_tick_h: f64) -> u32 {
+    s.u(2 * TICK_LEN as u32) + s.u(x_tick_h.ceil() as u32) + s.u(6) + s.u(LABEL_PX as u32) + s.u(6)
+}
+
+/// Fills the figure white and draws the title (shrunk until it fits the width); returns
+/// the area under it, inside the figure margins (`right` from [`side_areas`]).
+fn titled<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    s: Scale,
+    title: &str,
+    right: u32,
+) -> DrawResult<DrawingArea<DB, Shift>>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE)?;
+    let (w, _) = root.dim_in_pixel();
+    let mut title_px = TITLE_PX;
+    let title_font = loop {
+        let f = s.font(title_px);
+        if root.estimate_text_size(title, &f.clone().into())?.0 + s.u(16) <= w || title_px <= 11.0 {
+            break f;
+        }
+        title_px -= 1.0;
+    };
+    let body = root.margin(s.u(10), s.u(4), s.u(MARGIN_LEFT), right);
+    Ok(body.titled(title, title_font)?)
+}
+
+/// A chart filling `area` with `x_area` under and `y_area` left of the plot for labels;
+/// nothing drawn yet, so it can be rebuilt (see [`legend_headroom`]).
+fn build<'a, DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    x: &Axis,
+    y: &Axis,
+    x_area: u32,
+    y_area: u32,
+) -> DrawResult<Chart<'a, DB>>
+where
+    DB::ErrorType: 'static,
+{
+    Ok(ChartBuilder::on(area)
+        .x_label_area_size(x_area)
+        .y_label_area_size(y_area)
+        .build_cartesian_2d(x.spec(), y.spec())?)
+}
+
+/// Grid, axes, ticks, tick labels and axis labels. Without `x_desc` the x tick labels are
+/// left out too (a panel sharing the x axis of the one below), the tick marks are not.
+fn mesh<DB: DrawingBackend>(
+    chart: &mut Chart<'_, DB>,
+    s: Scale,
+    (x, x_desc): (&Axis, Option<&str>),
+    (y, y_desc): (&Axis, &str),
+) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    let tick_font: TextStyle = s.font(TICK_PX).color(&BLACK);
+    let label_font: TextStyle = s.font(LABEL_PX).color(&BLACK);
+    let x_fmt = |v: &f64| x.label(*v);
+    let y_fmt = |v: &f64| y.label(*v);
+    let mut mesh = chart.configure_mesh();
+    mesh.y_desc(y_desc)
+        .axis_desc_style(label_font)
+        .label_style(tick_font.clone())
+        .x_label_formatter(&x_fmt)
+        .y_label_formatter(&y_fmt)
+        .bold_line_style(BLACK.mix(0.13).stroke_width(s.u(1)))
+        .light_line_style(BLACK.mix(0.05).stroke_width(s.u(1)))
+        .axis_style(INK.stroke_width(s.u(1)))
+        .set_all_tick_mark_size(s.i(TICK_LEN));
+    match x_desc {
+        Some(d) => mesh.x_desc(d),
+        None => mesh.x_label_style(tick_font.color(&TRANSPARENT)),
+    };
+    if x.categorical {
+        mesh.disable_x_mesh();
+    }
+    mesh.draw()?;
+    Ok(())
+}
+
 /// Title, axes, grid, ticks and axis labels; returns the chart to draw series on. The x
 /// tick labels get `x_tick_h` logical pixels of height.
 fn frame<'a, DB: DrawingBackend>(
@@ -626,51 +738,10 @@ fn frame<'a, DB: DrawingBackend>(
 where
     DB::ErrorType: 'static,
 {
-    root.fill(&WHITE)?;
-    let (w, _) = root.dim_in_pixel();
-
-    let mut title_px = TITLE_PX;
-    let title_font = loop {
-        let f = s.font(title_px);
-        if root.estimate_text_size(title, &f.clone().into())?.0 + s.u(16) <= w || title_px <= 11.0 {
-            break f;
-        }
-        title_px -= 1.0;
-    };
-
-    let tick_font: TextStyle = s.font(TICK_PX).color(&BLACK);
-    let label_font: TextStyle = s.font(LABEL_PX).color(&BLACK);
     let (y_area, right) = side_areas(root, s, x, y)?;
-    let label_dist = s.u(2 * TICK_LEN as u32);
-    let x_area = label_dist + s.u(x_tick_h.ceil() as u32) + s.u(6) + s.u(LABEL_PX as u32) + s.u(6);
-
-    let mut chart = ChartBuilder::on(root)
-        .caption(title, title_font)
-        .margin_top(s.u(10))
-        .margin_left(s.u(MARGIN_LEFT))
-        .margin_right(right)
-        .margin_bottom(s.u(4))
-        .x_label_area_size(x_area)
-        .y_label_area_size(y_area)
-        .build_cartesian_2d(x.spec(), y.spec())?;
-
-    let x_fmt = |v: &f64| x.label(*v);
-    let y_fmt = |v: &f64| y.label(*v);
-    let mut mesh = chart.configure_mesh();
-    mesh.x_desc(x_desc)
-        .y_desc(y_desc)
-        .axis_desc_style(label_font)
-        .label_style(tick_font.clone())
-        .x_label_formatter(&x_fmt)
-        .y_label_formatter(&y_fmt)
-        .bold_line_style(BLACK.mix(0.13).stroke_width(s.u(1)))
-        .light_line_style(BLACK.mix(0.05).stroke_width(s.u(1)))
-        .axis_style(INK.stroke_width(s.u(1)))
-        .set_all_tick_mark_size(s.i(TICK_LEN));
-    if x.categorical {
-        mesh.disable_x_mesh();
-    }
-    mesh.draw()?;
+    let body = titled(root, s, title, right)?;
+    let mut chart = build(&body, x, y, x_label_area(s, x_tick_h), y_area)?;
+    mesh(&mut chart, s, (x, Some(x_desc)), (y, y_desc))?;
     Ok(chart)
 }
 
@@ -688,6 +759,19 @@ where
         .filter(|(_, a)| a.clamped)
         .map(|(name, a)| format!("{name} values ≤ 0 drawn at {}", fmt_num(a.floor)))
         .collect();
+    footnote(root, s, &parts)
+}
+
+/// Small grey note at the figure's lower left: what the figure does not show as given.
+/// Nothing when `parts` is empty.
+fn footnote<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    s: Scale,
+    parts: &[String],
+) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
     if parts.is_empty() {
         return Ok(());
     }
@@ -702,6 +786,23 @@ where
         style,
     ))?;
     Ok(())
+}
+
+/// Height of the footnote row, logical pixels.
+const NOTE_ROW: u32 = 14;
+
+/// `area` less a row at its bottom for the footnote, if there is one, so that a long note
+/// cannot run into the x axis label.
+fn above_footnote<DB: DrawingBackend>(
+    area: DrawingArea<DB, Shift>,
+    s: Scale,
+    parts: &[String],
+) -> DrawingArea<DB, Shift> {
+    if parts.is_empty() {
+        area
+    } else {
+        area.margin(0, s.u(NOTE_ROW), 0, 0)
+    }
 }
 
 /// Plot-space polyline to backend pixels, sampled every few pixels (for legend placement).
@@ -736,6 +837,103 @@ enum Corner {
     LowerLeft,
 }
 
+/// Legend geometry in backend pixels: box size, label margin and swatch width.
+struct LegendBox {
+    w: i32,
+    h: i32,
+    margin: i32,
+    swatch_area: i32,
+}
+
+/// The legend box of `labels`.
+fn legend_box(s: Scale, labels: &[&str]) -> DrawResult<LegendBox> {
+    let style: TextStyle = s.font(LEGEND_PX).color(&BLACK);
+    let mut text = MultiLineText::<(i32, i32), &str>::new((0, 0), &style);
+    for l in labels {
+        text.push_line(*l);
+    }
+    let (tw, th) = text.estimate_dimension()?;
+    let (margin, swatch_area) = (s.i(7), s.i(30));
+    Ok(LegendBox {
+        w: tw + swatch_area + 2 * margin,
+        h: th + 2 * margin,
+        margin,
+        swatch_area,
+    })
+}
+
+/// Distance of the legend box from the plot's edges.
+fn legend_inset(s: Scale) -> i32 {
+    s.i(6)
+}
+
+/// The corner of the plot (`prefer` order breaks ties) where a legend box `b` hides the
+/// fewest `drawn` points: its position relative to the plot and how many it hides.
+fn legend_spot<DB: DrawingBackend>(
+    chart: &Chart<'_, DB>,
+    s: Scale,
+    b: &LegendBox,
+    drawn: &[(i32, i32)],
+    prefer: [Corner; 4],
+) -> ((i32, i32), usize) {
+    let (xr, yr) = chart.plotting_area().get_pixel_range();
+    let (pw, ph) = (xr.end - xr.start, yr.end - yr.start);
+    let inset = legend_inset(s);
+    let at = |c: Corner| match c {
+        Corner::UpperRight => (pw - b.w - inset, inset),
+        Corner::UpperLeft => (inset, inset),
+        Corner::LowerRight => (pw - b.w - inset, ph - b.h - inset),
+        Corner::LowerLeft => (inset, ph - b.h - inset),
+    };
+    let hidden = |(x, y): (i32, i32)| {
+        let pad = s.i(3);
+        drawn
+            .iter()
+            .filter(|&&(px, py)| {
+                let (px, py) = (px - xr.start, py - yr.start);
+                px >= x - pad && px <= x + b.w + pad && py >= y - pad && py <= y + b.h + pad
+            })
+            .count()
+    };
+    prefer
+        .into_iter()
+        .map(|c| (at(c), hidden(at(c))))
+        .min_by_key(|&(_, n)| n)
+        .unwrap_or(((inset, inset), 0))
+}
+
+/// When the legend would hide some of `drawn` in every corner, `y` with room above the data
+/// for it (see [`Axis::with_headroom`]); the chart must then be rebuilt on the new axis.
+fn legend_headroom<DB: DrawingBackend>(
+    chart: &Chart<'_, DB>,
+    s: Scale,
+    labels: &[&str],
+    drawn: &[(i32, i32)],
+    y: &Axis,
+    max_ticks: usize,
+) -> DrawResult<Option<Axis>> {
+    if labels.is_empty() {
+        return Ok(None);
+    }
+    let b = legend_box(s, labels)?;
+    use Corner::*;
+    let (_, hidden) = legend_spot(
+        chart,
+        s,
+        &b,
+        drawn,
+        [UpperRight, UpperLeft, LowerRight, LowerLeft],
+    );
+    if hidden == 0 {
+        return Ok(None);
+    }
+    let (_, yr) = chart.plotting_area().get_pixel_range();
+    let need = b.h + 2 * legend_inset(s) + s.i(3);
+    // Never squeeze the data into less than a third of the plot.
+    let frac = (f64::from(need) / f64::from((yr.end - yr.start).max(1))).min(2.0 / 3.0);
+    Ok(Some(y.with_headroom(frac, max_ticks)))
+}
+
 /// Draws the legend in the corner of the plot where it hides the fewest drawn points
 /// (`prefer` order breaks ties).
 fn legend<'a, DB: DrawingBackend + 'a>(
@@ -751,47 +949,77 @@ where
     if labels.is_empty() {
         return Ok(());
     }
-    let style: TextStyle = s.font(LEGEND_PX).color(&BLACK);
-    let mut text = MultiLineText::<(i32, i32), &str>::new((0, 0), &style);
-    for l in labels {
-        text.push_line(*l);
-    }
-    let (tw, th) = text.estimate_dimension()?;
-    let (margin, swatch_area) = (s.i(7), s.i(30));
-    let (lw, lh) = (tw + swatch_area + 2 * margin, th + 2 * margin);
-    let (xr, yr) = chart.plotting_area().get_pixel_range();
-    let (pw, ph) = (xr.end - xr.start, yr.end - yr.start);
-    let inset = s.i(6);
-    let at = |c: Corner| match c {
-        Corner::UpperRight => (pw - lw - inset, inset),
-        Corner::UpperLeft => (inset, inset),
-        Corner::LowerRight => (pw - lw - inset, ph - lh - inset),
-        Corner::LowerLeft => (inset, ph - lh - inset),
-    };
-    let hidden = |(x, y): (i32, i32)| {
-        let pad = s.i(3);
-        drawn
-            .iter()
-            .filter(|&&(px, py)| {
-                let (px, py) = (px - xr.start, py - yr.start);
-                px >= x - pad && px <= x + lw + pad && py >= y - pad && py <= y + lh + pad
-            })
-            .count()
-    };
-    let best = prefer
-        .into_iter()
-        .min_by_key(|&c| hidden(at(c)))
-        .unwrap_or(Corner::UpperRight);
-    let (x, y) = at(best);
+    let b = legend_box(s, labels)?;
+    let ((x, y), _) = legend_spot(chart, s, &b, drawn, prefer);
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::Coordinate(x, y))
-        .label_font(style.clone())
-        .legend_area_size(swatch_area as u32)
-        .margin(margin as u32)
+        .label_font(s.font(LEGEND_PX).color(&BLACK))
+        .legend_area_size(b.swatch_area as u32)
+        .margin(b.margin as u32)
         .background_style(WHITE.mix(0.9).filled())
         .border_style(INK.mix(0.45).stroke_width(s.u(1)))
         .draw()?;
+    Ok(())
+}
+
+/// Draws the polyline `pts` (plot space) in `style`; returns its series handle, for a
+/// legend entry. The SVG gets one polyline. On a bitmap plotters fills a wide line's whole
+/// outline as one even-odd polygon with mitred corners: holes where the line overlaps
+/// itself (a retraced loop, a min/max envelope's zigzag) and spikes at sharp turns. So
+/// there each segment is its own quad, with round joins.
+fn stroke<'a, 'b, DB: DrawingBackend + 'a>(
+    chart: &'b mut Chart<'a, DB>,
+    s: Scale,
+    pts: Vec<(f64, f64)>,
+    style: ShapeStyle,
+) -> DrawResult<&'b mut SeriesAnno<'a, DB>>
+where
+    DB::ErrorType: 'static,
+{
+    if s.1 == Canvas::Vector || style.stroke_width <= 1 {
+        return Ok(chart.draw_series(LineSeries::new(pts, style))?);
+    }
+    // Points on the same pixel as the one before add nothing.
+    let mut kept: Vec<(f64, f64)> = Vec::with_capacity(pts.len());
+    let mut last = None;
+    for p in pts {
+        let b = chart.backend_coord(&p);
+        if last != Some(b) {
+            kept.push(p);
+            last = Some(b);
+        }
+    }
+    let inner = kept
+        .get(1..kept.len().saturating_sub(1))
+        .unwrap_or_default();
+    let r = style.stroke_width / 2;
+    chart.draw_series(inner.iter().map(|&p| Circle::new(p, r, style.filled())))?;
+    Ok(chart.draw_series(
+        kept.windows(2)
+            .map(|w| PathElement::new(vec![w[0], w[1]], style)),
+    )?)
+}
+
+/// Draws `pts` (plot space) as a line in `col`, `width` logical pixels wide; with a label,
+/// also its legend entry (a short line of the same colour and width).
+fn line_series<'a, DB: DrawingBackend + 'a>(
+    chart: &mut Chart<'a, DB>,
+    s: Scale,
+    pts: Vec<(f64, f64)>,
+    (col, width): (RGBColor, u32),
+    label: Option<&str>,
+) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    let (lw, sw) = (s.u(width), s.i(22));
+    let anno = stroke(chart, s, pts, col.stroke_width(lw))?;
+    if let Some(l) = label {
+        anno.label(l).legend(move |p| {
+            EmptyElement::at(p) + PathElement::new(vec![(0, 0), (sw, 0)], col.stroke_width(lw))
+        });
+    }
     Ok(())
 }
 
@@ -872,8 +1100,7 @@ impl Figure for Convergence<'_> {
         let (sw, sh, lw) = (s.i(22), s.i(5), s.u(LINE_W));
         for (i, (c, line)) in self.series.iter().zip(lines).enumerate() {
             let col = color(i);
-            chart
-                .draw_series(LineSeries::new(line, col.stroke_width(lw)))?
+            stroke(&mut chart, s, line, col.stroke_width(lw))?
                 .label(c.label.as_str())
                 .legend(move |p| {
                     EmptyElement::at(p)
@@ -1228,8 +1455,6 @@ impl Figure for Ecdf<'_> {
             TICK_LINE,
         )?;
         let mut drawn = Vec::new();
-        let lw = s.u(LINE_W);
-        let sw = s.i(22);
         for (i, (label, values)) in self.series.iter().enumerate() {
             let mut hits: Vec<f64> = values
                 .iter()
@@ -1246,14 +1471,7 @@ impl Figure for Ecdf<'_> {
             }
             steps.push((x.hi, hits.len() as f64 / n));
             ink(&chart, s, &steps, &mut drawn);
-            let col = color(i);
-            chart
-                .draw_series(LineSeries::new(steps, col.stroke_width(lw)))?
-                .label(label.as_str())
-                .legend(move |p| {
-                    EmptyElement::at(p)
-                        + PathElement::new(vec![(0, 0), (sw, 0)], col.stroke_width(lw))
-                });
+            line_series(&mut chart, s, steps, (color(i), LINE_W), Some(label))?;
         }
         let labels: Vec<&str> = self.series.iter().map(|(l, _)| l.as_str()).collect();
         use Corner::*;
@@ -1289,6 +1507,394 @@ pub fn ecdf(
             series,
             x_label,
             x_span,
+        },
+    )
+}
+
+// ---------------------------------------------------------------------------------------
+// Time series and input-output loops
+
+/// Most points drawn per series in the input-output plane (see [`loops`]).
+const MAX_LOOP_POINTS: usize = 5000;
+/// Space between the two panels of [`timeseries_with_error`], logical pixels: the upper
+/// panel's tick marks and room for y tick labels at both panels' facing edges.
+const PANEL_GAP: u32 = 18;
+/// Legend label of the measured output.
+const MEASURED: &str = "measured";
+
+/// Min/max envelope of a time series, for drawing: `x` is cut into `columns` equal slices
+/// of `[lo, hi]` (one per pixel column), and of each run of consecutive samples in one slice
+/// only the lowest and the highest are kept, in time order (once if they are the same
+/// sample). A line through them covers, to within a pixel, what a line through every
+/// sample would, so a one-sample spike still shows; yet it has at most 2 points a column
+/// however long the record. `x` should increase (otherwise it only thins less). Samples
+/// with a non-finite `x` or `y` are skipped.
+fn envelope(x: &[f64], y: &[f64], (lo, hi): (f64, f64), columns: usize) -> Vec<(f64, f64)> {
+    type Sample = (usize, f64, f64);
+    let cols = columns.max(1);
+    let width = (hi - lo) / cols as f64;
+    let column = |v: f64| {
+        if width > 0.0 {
+            ((v - lo) / width).floor().clamp(0.0, (cols - 1) as f64) as usize
+        } else {
+            0
+        }
+    };
+    let flush = |out: &mut Vec<(f64, f64)>, (min, max): (Sample, Sample)| {
+        let (a, b) = if min.0 <= max.0 {
+            (min, max)
+        } else {
+            (max, min)
+        };
+        out.push((a.1, a.2));
+        if b.0 != a.0 {
+            out.push((b.1, b.2));
+        }
+    };
+    let mut out = Vec::with_capacity((2 * cols).min(x.len()));
+    // The current run: its column, its lowest and its highest sample.
+    let mut run: Option<(usize, Sample, Sample)> = None;
+    for (k, (&xv, &yv)) in x.iter().zip(y).enumerate() {
+        if !(xv.is_finite() && yv.is_finite()) {
+            continue;
+        }
+        let c = column(xv);
+        match &mut run {
+            Some((rc, min, max)) if *rc == c => {
+                if yv < min.2 {
+                    *min = (k, xv, yv);
+                }
+                if yv > max.2 {
+                    *max = (k, xv, yv);
+                }
+            }
+            _ => {
+                if let Some((_, min, max)) = run {
+                    flush(&mut out, (min, max));
+                }
+                run = Some((c, (k, xv, yv), (k, xv, yv)));
+            }
+        }
+    }
+    if let Some((_, min, max)) = run {
+        flush(&mut out, (min, max));
+    }
+    out
+}
+
+/// Every `step`-th sample pair from the first, `step` the smallest that keeps at most
+/// `cap`, plus the last so the path ends where the record does; pairs with a non-finite
+/// value are skipped. Returns the points and `step`.
+fn stride(x: &[f64], y: &[f64], cap: usize) -> (Vec<(f64, f64)>, usize) {
+    let n = x.len().min(y.len());
+    let step = n.div_ceil(cap.max(1)).max(1);
+    let last = (n > 0 && !(n - 1).is_multiple_of(step)).then(|| n - 1);
+    let pts = (0..n)
+        .step_by(step)
+        .chain(last)
+        .map(|k| (x[k], y[k]))
+        .filter(|(a, b)| a.is_finite() && b.is_finite())
+        .collect();
+    (pts, step)
+}
+
+/// "error [mm]" for "displacement [mm]": "error" and the unit in trailing brackets, if any.
+fn error_label(y_label: &str) -> String {
+    let l = y_label.trim_end();
+    match l.strip_suffix(']').and_then(|r| r.rfind('[')) {
+        Some(i) => format!("error {}", &l[i..]),
+        None => "error".into(),
+    }
+}
+
+/// The measured output first, then the models: (label, values), series `i` in colour `i`
+/// (so the measured output is black).
+fn output_series<'a>(
+    measured: &'a [f64],
+    models: &'a [(String, Vec<f64>)],
+) -> Vec<(&'a str, &'a [f64])> {
+    std::iter::once((MEASURED, measured))
+        .chain(models.iter().map(|(l, v)| (l.as_str(), v.as_slice())))
+        .collect()
+}
+
+/// Colour and width of output series `i` (0 the measured one): the measured line is
+/// drawn first and wider, so it shows on both sides of a model that fits it.
+fn series_pen(i: usize) -> (RGBColor, u32) {
+    (color(i), if i == 0 { LINE_W + 2 } else { LINE_W })
+}
+
+/// Checks that the measured output and every model are as long as the independent variable.
+fn check_lengths(
+    what: &str,
+    n: usize,
+    measured: &[f64],
+    models: &[(String, Vec<f64>)],
+) -> Result<()> {
+    for (label, v) in output_series(measured, models) {
+        if v.len() != n {
+            return Err(Error::Input(format!(
+                "{what} has {n} samples but `{label}` has {}",
+                v.len()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Footnote part counting the (x, output) samples that cannot be drawn.
+fn nonfinite_note(x: &[f64], series: &[(&str, &[f64])]) -> Option<String> {
+    let n: usize = series
+        .iter()
+        .map(|(_, v)| {
+            x.iter()
+                .zip(*v)
+                .filter(|(a, b)| !(a.is_finite() && b.is_finite()))
+                .count()
+        })
+        .sum();
+    match n {
+        0 => None,
+        1 => Some("1 non-finite sample not drawn".into()),
+        n => Some(format!("{n} non-finite samples not drawn")),
+    }
+}
+
+/// Width of the plot in logical pixels: the number of envelope columns.
+fn plot_columns<DB: DrawingBackend>(chart: &Chart<'_, DB>, s: Scale) -> usize {
+    let (xr, _) = chart.plotting_area().get_pixel_range();
+    ((xr.end - xr.start).max(1) as u32).div_ceil(s.0) as usize
+}
+
+/// Where `lines` pass, for legend placement.
+fn ink_all<DB: DrawingBackend>(
+    chart: &Chart<'_, DB>,
+    s: Scale,
+    lines: &[Vec<(f64, f64)>],
+) -> Vec<(i32, i32)> {
+    let mut drawn = Vec::new();
+    for l in lines {
+        ink(chart, s, l, &mut drawn);
+    }
+    drawn
+}
+
+struct TimeSeries<'a> {
+    title: &'a str,
+    t: &'a [f64],
+    measured: &'a [f64],
+    models: &'a [(String, Vec<f64>)],
+    t_label: &'a str,
+    y_label: &'a str,
+}
+
+impl Figure for TimeSeries<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>, s: Scale) -> DrawResult
+    where
+        DB::ErrorType: 'static,
+    {
+        let series = output_series(self.measured, self.models);
+        let errors: Vec<Vec<f64>> = self
+            .models
+            .iter()
+            .map(|(_, m)| m.iter().zip(self.measured).map(|(a, b)| a - b).collect())
+            .collect();
+        let all: Vec<f64> = series.iter().flat_map(|(_, v)| v.iter().copied()).collect();
+        let all_e: Vec<f64> = errors.iter().flatten().copied().chain([0.0]).collect();
+        let x = Axis::fit(false, self.t, 0.0, 8);
+        let mut y = Axis::fit(false, &all, 0.04, 6);
+        let e = Axis::fit(false, &all_e, 0.08, 4);
+        let labels: Vec<&str> = series.iter().map(|(l, _)| *l).collect();
+        let note: Vec<String> = nonfinite_note(self.t, &series).into_iter().collect();
+
+        // Upper panel about 2/3, lower 1/3 of the plot height; both with the same y label
+        // area, so the plots line up.
+        let (x_area, gap) = (x_label_area(s, TICK_LINE), s.u(PANEL_GAP));
+        let (y_area, right) = side_areas(root, s, &x, &y)?;
+        let mut y_area = y_area.max(side_areas(root, s, &x, &e)?.0);
+        let body = above_footnote(titled(root, s, self.title, right)?, s, &note);
+        let (_, h) = body.dim_in_pixel();
+        let lower_plot = h.saturating_sub(gap + x_area) / 3;
+        let (top, bottom) = body.split_vertically(h - lower_plot - x_area);
+
+        let envelopes = |chart: &Chart<'_, DB>| -> Vec<Vec<(f64, f64)>> {
+            let columns = plot_columns(chart, s);
+            series
+                .iter()
+                .map(|(_, v)| envelope(self.t, v, (x.lo, x.hi), columns))
+                .collect()
+        };
+        let mut upper = build(&top, &x, &y, gap, y_area)?;
+        let mut lines = envelopes(&upper);
+        if let Some(roomy) =
+            legend_headroom(&upper, s, &labels, &ink_all(&upper, s, &lines), &y, 6)?
+        {
+            y = roomy;
+            y_area = y_area.max(side_areas(root, s, &x, &y)?.0);
+            upper = build(&top, &x, &y, gap, y_area)?;
+            lines = envelopes(&upper);
+        }
+        let drawn = ink_all(&upper, s, &lines);
+        mesh(&mut upper, s, (&x, None), (&y, self.y_label))?;
+        for (i, (line, label)) in lines.into_iter().zip(&labels).enumerate() {
+            line_series(&mut upper, s, line, series_pen(i), Some(label))?;
+        }
+        use Corner::*;
+        legend(
+            &mut upper,
+            s,
+            &labels,
+            &drawn,
+            [UpperRight, UpperLeft, LowerRight, LowerLeft],
+        )?;
+
+        let mut lower = build(&bottom, &x, &e, x_area, y_area)?;
+        mesh(
+            &mut lower,
+            s,
+            (&x, Some(self.t_label)),
+            (&e, &error_label(self.y_label)),
+        )?;
+        let columns = plot_columns(&lower, s);
+        for (i, err) in errors.iter().enumerate() {
+            let line = envelope(self.t, err, (x.lo, x.hi), columns);
+            line_series(&mut lower, s, line, (color(i + 1), LINE_W), None)?;
+        }
+        footnote(root, s, &note)
+    }
+}
+
+/// Measured and modelled output over time with the models' errors under it (the layout
+/// of the dissertation's Fig. 3.5): an upper panel, about 2/3 of the height, with the
+/// measured output in black and model `i` in colour `i + 1` ([`color`]) and a legend; a
+/// lower panel with each model's error e = model - measured in its colour, on the same x
+/// range, its y label "error" and the unit in brackets at the end of `y_label`, if any.
+/// Only the lower panel has x tick labels.
+///
+/// Long records draw fast and keep their peaks: each line is reduced to the lowest and
+/// highest sample of every pixel column (a min/max envelope), so at most two points per
+/// column however long the record, and a one-sample spike still shows. Samples with a non-finite time or value are skipped and counted in
+/// a footnote. `t` should increase; `measured` and every model must have its length.
+pub fn timeseries_with_error(
+    path_stem: &Path,
+    title: &str,
+    t: &[f64],
+    measured: &[f64],
+    models: &[(String, Vec<f64>)],
+    t_label: &str,
+    y_label: &str,
+) -> Result<()> {
+    font::register()?;
+    check_lengths("t", t.len(), measured, models)?;
+    render(
+        path_stem,
+        &TimeSeries {
+            title,
+            t,
+            measured,
+            models,
+            t_label,
+            y_label,
+        },
+    )
+}
+
+struct Loops<'a> {
+    title: &'a str,
+    u: &'a [f64],
+    measured: &'a [f64],
+    models: &'a [(String, Vec<f64>)],
+    u_label: &'a str,
+    y_label: &'a str,
+}
+
+impl Figure for Loops<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>, s: Scale) -> DrawResult
+    where
+        DB::ErrorType: 'static,
+    {
+        let series = output_series(self.measured, self.models);
+        let labels: Vec<&str> = series.iter().map(|(l, _)| *l).collect();
+        let mut step = 1;
+        let lines: Vec<Vec<(f64, f64)>> = series
+            .iter()
+            .map(|(_, v)| {
+                let (pts, k) = stride(self.u, v, MAX_LOOP_POINTS);
+                step = k;
+                pts
+            })
+            .collect();
+        let note: Vec<String> = (step > 1)
+            .then(|| format!("1 in {step} samples drawn"))
+            .into_iter()
+            .chain(nonfinite_note(self.u, &series))
+            .collect();
+        // Axes fit what is drawn: a sample the stride skips would only leave empty space.
+        let drawn_values =
+            |f: fn(&(f64, f64)) -> f64| -> Vec<f64> { lines.iter().flatten().map(f).collect() };
+        let x = Axis::fit(false, &drawn_values(|p| p.0), 0.04, 8);
+        let mut y = Axis::fit(false, &drawn_values(|p| p.1), 0.04, 7);
+
+        let (y_area, right) = side_areas(root, s, &x, &y)?;
+        let body = above_footnote(titled(root, s, self.title, right)?, s, &note);
+        let x_area = x_label_area(s, TICK_LINE);
+        let mut chart = build(&body, &x, &y, x_area, y_area)?;
+        if let Some(roomy) =
+            legend_headroom(&chart, s, &labels, &ink_all(&chart, s, &lines), &y, 7)?
+        {
+            y = roomy;
+            let y_area = y_area.max(side_areas(root, s, &x, &y)?.0);
+            chart = build(&body, &x, &y, x_area, y_area)?;
+        }
+        let drawn = ink_all(&chart, s, &lines);
+        mesh(&mut chart, s, (&x, Some(self.u_label)), (&y, self.y_label))?;
+        for (i, (line, label)) in lines.into_iter().zip(&labels).enumerate() {
+            line_series(&mut chart, s, line, series_pen(i), Some(label))?;
+        }
+        use Corner::*;
+        legend(
+            &mut chart,
+            s,
+            &labels,
+            &drawn,
+            [UpperLeft, LowerRight, UpperRight, LowerLeft],
+        )?;
+        footnote(root, s, &note)
+    }
+}
+
+/// Hysteresis loops in the input-output plane (the dissertation's Fig. 3.6): the measured
+/// output against the input `u` as a black line and model `i`'s output against `u` in
+/// colour `i + 1` ([`color`]), with a legend.
+///
+/// Long records are thinned to every k-th sample, k the smallest that leaves at most 5000
+/// points per line (noted in a footnote when k > 1); the axes fit what is drawn. Not a
+/// min/max envelope as in [`timeseries_with_error`]: along `u` the path goes back and
+/// forth, so per-column extremes would join points of different branches; a stride keeps
+/// the path's order and, for the smooth, densely sampled records loops come from, its
+/// shape (the time-series figure is the one that shows every spike). Samples with a
+/// non-finite input or output are skipped and counted in a footnote. `measured` and every
+/// model must have the length of `u`.
+pub fn loops(
+    path_stem: &Path,
+    title: &str,
+    u: &[f64],
+    measured: &[f64],
+    models: &[(String, Vec<f64>)],
+    u_label: &str,
+    y_label: &str,
+) -> Result<()> {
+    font::register()?;
+    check_lengths("u", u.len(), measured, models)?;
+    render(
+        path_stem,
+        &Loops {
+            title,
+            u,
+            measured,
+            models,
+            u_label,
+            y_label,
         },
     )
 }
@@ -1385,7 +1991,7 @@ mod tests {
         font::register().unwrap();
         let mut buf = String::new();
         let root = SVGBackend::with_string(&mut buf, (WIDTH, HEIGHT)).into_drawing_area();
-        let f: TextStyle = Scale(1).font(TICK_PX).into();
+        let f: TextStyle = Scale::SVG.font(TICK_PX).into();
         let w = |t: &str| root.estimate_text_size(t, &f).unwrap().0;
         let wrap = |t: &str, max: u32| wrap(&root, &f, t, max).unwrap();
         assert_eq!(wrap("GA", 100), vec!["GA"]);
@@ -1705,6 +2311,240 @@ mod tests {
         assert_eq!(std::fs::read_dir(d).unwrap().count(), 14);
     }
 
+    /// Points of each polyline drawn in colour `c`.
+    fn polylines(svg: &str, c: RGBColor) -> Vec<Vec<(f64, f64)>> {
+        let stroke = format!("stroke=\"{}\"", hex(c));
+        svg.split('<')
+            .filter(|e| e.starts_with("polyline") && e.contains(&stroke))
+            .map(|e| {
+                let pts = e.split("points=\"").nth(1).unwrap().split('"').next();
+                pts.unwrap()
+                    .split_whitespace()
+                    .map(|p| {
+                        let (x, y) = p.split_once(',').unwrap();
+                        (x.parse().unwrap(), y.parse().unwrap())
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn timeseries_with_error_writes_svg_and_png() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = piezo(2000, 0.02);
+        let title = "Piezo actuator: output and model error";
+        timeseries_with_error(
+            &dir.path().join("ts"),
+            title,
+            &r.t,
+            &r.measured,
+            &r.models,
+            "time [s]",
+            "displacement y [µm]",
+        )
+        .unwrap();
+        only_outputs(dir.path(), "ts");
+        let f = files(dir.path(), "ts");
+        check_common(
+            &f,
+            title,
+            &[
+                MEASURED,
+                "Prandtl-Ishlinskii",
+                "Bouc-Wen",
+                "time [s]",
+                "displacement y [µm]",
+                "error [µm]",
+            ],
+        );
+        // x tick labels on the lower panel only; the upper panel's leave no empty texts.
+        assert_eq!(texts(&f.svg, "1.75"), 1);
+        assert_eq!(texts(&f.svg, ""), 0);
+        // The measured output: its line and legend swatch. Every model: the same, plus its
+        // error line in the lower panel, below everything drawn in black.
+        let measured = polylines(&f.svg, color(0));
+        assert_eq!(measured.len(), 2);
+        let upper_bottom = measured.iter().flatten().map(|p| p.1).fold(0.0, f64::max);
+        let in_lower = |i: usize| {
+            polylines(&f.svg, color(i))
+                .iter()
+                .filter(|l| l.iter().all(|p| p.1 > upper_bottom))
+                .count()
+        };
+        for i in 1..=r.models.len() {
+            assert_eq!(polylines(&f.svg, color(i)).len(), 3, "lines of model {i}");
+        }
+        let error_series: usize = (0..PALETTE.len()).map(in_lower).sum();
+        assert_eq!(error_series, r.models.len());
+        assert_eq!(in_lower(0), 0);
+    }
+
+    #[test]
+    fn loops_writes_svg_and_png() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = piezo(2000, 0.02);
+        let title = "Piezo actuator: hysteresis loops";
+        loops(
+            &dir.path().join("loops"),
+            title,
+            &r.u,
+            &r.measured,
+            &r.models,
+            "input voltage u [V]",
+            "displacement y [µm]",
+        )
+        .unwrap();
+        only_outputs(dir.path(), "loops");
+        let f = files(dir.path(), "loops");
+        check_common(
+            &f,
+            title,
+            &[
+                MEASURED,
+                "Prandtl-Ishlinskii",
+                "Bouc-Wen",
+                "input voltage u [V]",
+                "displacement y [µm]",
+            ],
+        );
+        // One line and one legend swatch per output; nothing thinned, so no footnote.
+        for i in 0..=r.models.len() {
+            assert_eq!(polylines(&f.svg, color(i)).len(), 2, "lines of series {i}");
+        }
+        assert!(!f.svg.contains("samples drawn"));
+    }
+
+    #[test]
+    fn envelope_keeps_every_columns_extremes() {
+        let n = 150_000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-4).collect();
+        let mut y: Vec<f64> = (0..n)
+            .map(|k| (k as f64 * 1e-3).sin() + 0.1 * (((k * 7919) % 101) as f64 / 50.0 - 1.0))
+            .collect();
+        y[12_345] = 7.0;
+        y[98_765] = -9.0;
+        y[500] = f64::NAN;
+        let cols = 580;
+        let span = (0.0, t[n - 1]);
+        let env = envelope(&t, &y, span, cols);
+        assert!(env.len() <= 2 * cols, "{}", env.len());
+        assert!(env.contains(&(t[12_345], 7.0)) && env.contains(&(t[98_765], -9.0)));
+        assert!(env.iter().all(|p| p.1.is_finite()));
+        assert!(env.windows(2).all(|w| w[0].0 <= w[1].0), "time order");
+        // Brute force: every column's lowest and highest sample are kept.
+        let width = span.1 / cols as f64;
+        let mut ext = vec![(f64::INFINITY, f64::NEG_INFINITY); cols];
+        for (&tk, &yk) in t.iter().zip(&y).filter(|(_, y)| y.is_finite()) {
+            let c = ((tk / width) as usize).min(cols - 1);
+            ext[c] = (ext[c].0.min(yk), ext[c].1.max(yk));
+        }
+        for (c, &(lo, hi)) in ext.iter().enumerate() {
+            let of_c = |p: &&(f64, f64)| ((p.0 / width) as usize).min(cols - 1) == c;
+            let ys: Vec<f64> = env.iter().filter(of_c).map(|p| p.1).collect();
+            assert!(ys.contains(&lo) && ys.contains(&hi), "column {c}");
+        }
+        // Short records stay whole, minus non-finite samples; within a column the
+        // extremes keep their time order.
+        assert_eq!(
+            envelope(&[0.0, 1.0, 2.0], &[1.0, f64::NAN, 3.0], (0.0, 2.0), 100),
+            vec![(0.0, 1.0), (2.0, 3.0)]
+        );
+        assert_eq!(
+            envelope(&[0.0, 0.1, 0.2, 0.3], &[0.0, 5.0, -5.0, 1.0], (0.0, 1.0), 1),
+            vec![(0.1, 5.0), (0.2, -5.0)]
+        );
+        assert!(envelope(&[], &[], (0.0, 1.0), 10).is_empty());
+    }
+
+    #[test]
+    fn stride_caps_points_and_keeps_the_ends() {
+        let x: Vec<f64> = (0..150_000).map(f64::from).collect();
+        let (pts, step) = stride(&x, &x, MAX_LOOP_POINTS);
+        assert_eq!(step, 30);
+        assert!(pts.len() <= MAX_LOOP_POINTS + 1);
+        assert_eq!(pts[0], (0.0, 0.0));
+        assert_eq!(pts.last(), Some(&(149_999.0, 149_999.0)));
+        let (pts, step) = stride(&[1.0, f64::NAN, 3.0], &[1.0, 2.0, 3.0], 10);
+        assert_eq!((pts, step), (vec![(1.0, 1.0), (3.0, 3.0)], 1));
+        assert_eq!(stride(&[], &[], 10), (vec![], 1));
+    }
+
+    #[test]
+    fn error_label_takes_the_unit() {
+        assert_eq!(error_label("displacement y [µm]"), "error [µm]");
+        assert_eq!(error_label("y [mm] "), "error [mm]");
+        assert_eq!(error_label("normalised output"), "error");
+        assert_eq!(error_label("y [mm] at the tip"), "error");
+    }
+
+    #[test]
+    fn long_records_render() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let mut r = piezo(150_000, 0.05);
+        r.measured[777] = f64::NAN;
+        timeseries_with_error(
+            &d.join("ts"),
+            "150 000 samples",
+            &r.t,
+            &r.measured,
+            &r.models,
+            "time [s]",
+            "y [µm]",
+        )
+        .unwrap();
+        loops(
+            &d.join("loops"),
+            "150 000 samples",
+            &r.u,
+            &r.measured,
+            &r.models,
+            "u [V]",
+            "y [µm]",
+        )
+        .unwrap();
+        let f = files(d, "ts");
+        check_common(&f, "150 000 samples", &[MEASURED, "Bouc-Wen"]);
+        assert_eq!(texts(&f.svg, "1 non-finite sample not drawn"), 1);
+        for i in 0..=r.models.len() {
+            // At most two points per pixel column.
+            let lines = polylines(&f.svg, color(i));
+            assert!(lines.iter().all(|l| l.len() <= 2 * WIDTH as usize));
+        }
+        let f = files(d, "loops");
+        check_common(&f, "150 000 samples", &[MEASURED, "Bouc-Wen"]);
+        assert_eq!(
+            texts(
+                &f.svg,
+                "1 in 30 samples drawn; 1 non-finite sample not drawn"
+            ),
+            1
+        );
+    }
+
+    #[test]
+    fn odd_records_still_give_figures_or_input_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let nan = vec![("all NaN".to_string(), vec![f64::NAN; 3])];
+        timeseries_with_error(&d.join("t0"), "empty", &[], &[], &[], "t", "y").unwrap();
+        loops(&d.join("l0"), "empty", &[], &[], &[], "u", "y").unwrap();
+        let (t, y) = ([0.0, 1.0, 2.0], [1.0, 1.0, 1.0]);
+        timeseries_with_error(&d.join("t1"), "flat", &t, &y, &nan, "t", "y").unwrap();
+        loops(&d.join("l1"), "flat", &t, &y, &nan, "u", "y").unwrap();
+        assert_eq!(std::fs::read_dir(d).unwrap().count(), 8);
+        let short = vec![("short".to_string(), vec![1.0])];
+        assert!(matches!(
+            timeseries_with_error(&d.join("x"), "x", &t, &y, &short, "t", "y"),
+            Err(Error::Input(_))
+        ));
+        assert!(matches!(
+            loops(&d.join("x"), "x", &t, &y[..2], &[], "u", "y"),
+            Err(Error::Input(_))
+        ));
+    }
+
     /// Writes the demo figures to `$OPTBENCH_PLOT_DIR` to look at:
     /// `OPTBENCH_PLOT_DIR=/tmp/figs cargo test --release --lib demo_figures -- --ignored`.
     #[test]
@@ -1814,6 +2654,126 @@ mod tests {
             (1.0, 40_000.0),
         )
         .unwrap();
+        let r = piezo(40_000, 0.02);
+        timeseries_with_error(
+            &dir.join("timeseries"),
+            "Piezo actuator, 1 Hz sine: output and model error",
+            &r.t,
+            &r.measured,
+            &r.models,
+            "time [s]",
+            "displacement y [µm]",
+        )
+        .unwrap();
+        loops(
+            &dir.join("loops"),
+            "Piezo actuator, 1 Hz sine: hysteresis loops",
+            &r.u,
+            &r.measured,
+            &r.models,
+            "input voltage u [V]",
+            "displacement y [µm]",
+        )
+        .unwrap();
+        // Long record with spikes and gaps: the envelope keeps the spikes.
+        let mut r = piezo(150_000, 0.05);
+        r.measured[40_000] += 3.0;
+        r.measured[100_000] -= 4.0;
+        for k in (1000..1100).step_by(7) {
+            r.measured[k] = f64::NAN;
+        }
+        timeseries_with_error(
+            &dir.join("timeseries_long"),
+            "150 000 samples, two spikes, a gap",
+            &r.t,
+            &r.measured,
+            &r.models[..1],
+            "time [s]",
+            "displacement y [µm]",
+        )
+        .unwrap();
+        // Many models with long names, one exact; no unit; a short record.
+        let r = piezo(300, 0.0);
+        let mut many = r.models.clone();
+        many.push(("exact copy of the measurement".into(), r.measured.clone()));
+        for k in 1..=3 {
+            let v = r
+                .measured
+                .iter()
+                .map(|m| m * (1.0 + 0.01 * k as f64))
+                .collect();
+            many.push((format!("rate-dependent PI, {} operators", 5 * k), v));
+        }
+        timeseries_with_error(
+            &dir.join("timeseries_many"),
+            "Six models, 300 samples, a y label without a unit",
+            &r.t,
+            &r.measured,
+            &many,
+            "t",
+            "normalised output",
+        )
+        .unwrap();
+        loops(
+            &dir.join("loops_many"),
+            "Six models",
+            &r.u,
+            &r.measured,
+            &many,
+            "u",
+            "normalised output",
+        )
+        .unwrap();
+        loops(
+            &dir.join("loops_long"),
+            "150 000 samples",
+            &r.u,
+            &r.measured,
+            &r.models,
+            "input voltage u [V]",
+            "displacement y [µm]",
+        )
+        .unwrap();
+    }
+
+    /// A piezo-like record: `n` samples over 2 s of a 1 Hz sine 0..100 V; measured output
+    /// 0.13 u minus a tanh of a play operator's lag (hysteresis), plus deterministic noise
+    /// of amplitude `noise`; two models slightly off.
+    struct Record {
+        t: Vec<f64>,
+        u: Vec<f64>,
+        measured: Vec<f64>,
+        models: Vec<(String, Vec<f64>)>,
+    }
+
+    fn piezo(n: usize, noise: f64) -> Record {
+        let t: Vec<f64> = (0..n).map(|k| 2.0 * k as f64 / (n - 1) as f64).collect();
+        let u: Vec<f64> = t
+            .iter()
+            .map(|&t| 50.0 - 50.0 * (2.0 * std::f64::consts::PI * t).cos())
+            .collect();
+        let output = |gain: f64, r: f64, depth: f64| -> Vec<f64> {
+            let mut z = 0.0f64;
+            u.iter()
+                .map(|&u| {
+                    z = z.clamp(u - r, u + r);
+                    gain * u - depth * r * ((u - z) / 10.0).tanh()
+                })
+                .collect()
+        };
+        let mut measured = output(0.13, 25.0, 0.03);
+        for (k, m) in measured.iter_mut().enumerate() {
+            *m += noise * (((k as f64 * 12.9898).sin() * 43758.5453).fract() - 0.5) * 2.0;
+        }
+        Record {
+            models: vec![
+                ("Prandtl-Ishlinskii".into(), output(0.128, 20.0, 0.03)),
+                ("Bouc-Wen".into(), output(0.131, 25.0, 0.022)),
+            ],
+            t,
+            u,
+            measured,
+        }
     }
 
     #[test]
