@@ -27,6 +27,8 @@ pub enum Command {
     Report(ReportArgs),
     /// Fit one model to one recording with one optimizer; numbers and figures in --out.
     Fit(FitArgs),
+    /// Write piezo-twin recordings: the seed's experiments, or one --signal.
+    Simulate(SimulateArgs),
     /// List objectives and optimizers with their parameters and defaults.
     List,
 }
@@ -93,6 +95,32 @@ pub struct FitArgs {
     pub out: Option<PathBuf>,
 }
 
+#[derive(clap::Args, Debug)]
+pub struct SimulateArgs {
+    /// Drive signal, e.g. "sine:freq=10,amp=2.3,offset=2.35" (default: the seed's five
+    /// sinusoids and its validation chirp, one CSV each).
+    #[arg(long)]
+    pub signal: Option<String>,
+    /// Seconds of --signal (chirps carry their own).
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Twin overrides, e.g. "mode=off,creep=on,noise=0.001".
+    #[arg(long, default_value = "")]
+    pub twin: String,
+    /// Noise seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Sampling interval [s].
+    #[arg(long, default_value_t = 1e-3)]
+    pub dt: f64,
+    /// Column names written.
+    #[arg(long, default_value = "t,u,y")]
+    pub columns: String,
+    /// Output folder.
+    #[arg(long, default_value = "results/twin")]
+    pub out: PathBuf,
+}
+
 /// Entry point: returns the process exit code.
 pub fn main() -> i32 {
     let cli = Cli::parse();
@@ -138,6 +166,18 @@ fn dispatch(cli: Cli) -> Result<()> {
                     out,
                 })?
             );
+            Ok(())
+        }
+        Command::Simulate(a) => {
+            let req = crate::simulate::SimulateRequest {
+                signal: a.signal.map(|s| (s, a.duration)),
+                twin: a.twin,
+                seed: a.seed,
+                dt: a.dt,
+                columns: crate::recording::Columns::parse(&a.columns)?,
+                out: a.out,
+            };
+            print!("{}", crate::simulate::run(&req)?);
             Ok(())
         }
         Command::List => {

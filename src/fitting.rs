@@ -229,6 +229,38 @@ fn write_figures(dir: &Path, objective: &dyn Objective, record: &TrialRecord) ->
         &format!("best-so-far {label}"),
         true,
     )?;
-    let _ = view;
+    let (train, validate) = view.recordings();
+    let mut sets = vec![("train", train, false)];
+    if let Some(v) = validate {
+        sets.push(("validate", v, true));
+    }
+    for (set, rec, is_val) in sets {
+        let models = view.outputs(&record.best_x, is_val);
+        let unit = |i: usize| {
+            if rec.units[i].is_empty() {
+                String::new()
+            } else {
+                format!(" [{}]", rec.units[i])
+            }
+        };
+        plots::timeseries_with_error(
+            &dir.join(format!("{set}_time")),
+            &format!("{set}: measured and model ({})", record.optimizer),
+            &rec.t,
+            &rec.y,
+            &models,
+            &format!("time{}", unit(0)),
+            &format!("output{}", unit(2)),
+        )?;
+        plots::loops(
+            &dir.join(format!("{set}_loops")),
+            &format!("{set}: input-output loops ({})", record.optimizer),
+            &rec.u,
+            &rec.y,
+            &models,
+            &format!("input{}", unit(1)),
+            &format!("output{}", unit(2)),
+        )?;
+    }
     Ok(())
 }

@@ -26,6 +26,7 @@ pub mod report;
 pub mod results;
 pub mod runner;
 pub mod signal;
+pub mod simulate;
 pub mod stats;
 pub mod suite;
 

@@ -1,7 +1,7 @@
 //! The objective and optimizer kinds a suite may name, with their parameter tables.
 
 use crate::error::Error;
-use crate::objective::fit::RbfFit;
+use crate::objective::fit::{BoucWenFit, RbfFit};
 use crate::objective::functions::{Function, TestFunction};
 use crate::objective::source::{SimOptions, Source};
 use crate::objective::{Bounds, Objective};
@@ -212,6 +212,46 @@ fn build_rbf(p: &Params) -> Result<Arc<dyn Objective>, Error> {
     Ok(Arc::new(fit))
 }
 
+const BOUC_WEN_PARAMS: &[Spec] = recording_params![
+    Spec {
+        name: "d0",
+        kind: Kind::Bool,
+        default: D::Bool(false),
+        help: "also fit the offset d0 (the seed fitted d_e, alpha, beta, gamma, n)",
+    },
+    Spec {
+        name: "lower",
+        kind: Kind::Float {
+            min: f64::NEG_INFINITY,
+            max: f64::INFINITY
+        },
+        default: D::Float(0.0),
+        help: "lower bound of every (normalised) parameter (seed: 0)",
+    },
+    Spec {
+        name: "upper",
+        kind: Kind::Float {
+            min: f64::NEG_INFINITY,
+            max: f64::INFINITY
+        },
+        default: D::Float(1.5),
+        help: "upper bound of every (normalised) parameter (seed: 1.5)",
+    },
+];
+
+fn build_bouc_wen(p: &Params) -> Result<Arc<dyn Objective>, Error> {
+    let (train, validate) = recordings(p)?;
+    let fit = BoucWenFit::new(
+        &train,
+        validate.as_ref(),
+        p.bool("d0"),
+        p.float("lower"),
+        p.float("upper"),
+    )
+    .map_err(|e| p.error("lower", e))?;
+    Ok(Arc::new(fit))
+}
+
 /// Every objective kind.
 pub fn objective_kinds() -> Vec<ObjectiveKind> {
     use TestFunction::*;
@@ -222,6 +262,12 @@ pub fn objective_kinds() -> Vec<ObjectiveKind> {
         function_kind!(Rastrigin, Rastrigin.describe()),
         function_kind!(Rosenbrock, Rosenbrock.describe()),
         function_kind!(Ackley, Ackley.describe()),
+        ObjectiveKind {
+            name: "bouc-wen",
+            help: "fit the seed's Bouc-Wen model (eq. 3.1-3.3: d_e, alpha, beta, gamma, n [, d0]) to a recording by free-run simulation",
+            params: BOUC_WEN_PARAMS,
+            build: build_bouc_wen,
+        },
         ObjectiveKind {
             name: "rbf",
             help: "fit a Gaussian RBF NARX network (seed 3.2, 3-7-1 = 35 parameters) to a recording; reports one-step and free-run errors",

@@ -342,3 +342,151 @@ mod tests {
         assert!(!free.has_gradient());
     }
 }
+
+/// Fit of the seed's Bouc-Wen model (eq. 3.1-3.3) to a recording: parameters
+/// (d_e, alpha, beta, gamma, n) and optionally d0, in normalised units, cost from a free-run
+/// simulation (eq. 3.8-3.9). Unstable parameters cost a large finite penalty.
+pub struct BoucWenFit {
+    with_d0: bool,
+    train: FitData,
+    validate: Option<FitData>,
+    recordings: (Recording, Option<Recording>),
+    bounds: Bounds,
+}
+
+/// Names of the Bouc-Wen parameters in vector order.
+pub const BOUC_WEN_PARAMS: [&str; 6] = ["d_e", "alpha", "beta", "gamma", "n", "d0"];
+
+impl BoucWenFit {
+    /// The fit on `train` with every parameter in `[lower, upper]` (the seed: [0, 1.5]).
+    pub fn new(
+        train: &Recording,
+        validate: Option<&Recording>,
+        with_d0: bool,
+        lower: f64,
+        upper: f64,
+    ) -> Result<Self> {
+        let data = FitData::new(train, true)?;
+        let dim = if with_d0 { 6 } else { 5 };
+        let bounds = Bounds::uniform(dim, lower, upper).map_err(Error::Input)?;
+        Ok(BoucWenFit {
+            with_d0,
+            validate: validate.map(|v| data.like(v)),
+            recordings: (train.clone(), validate.cloned()),
+            train: data,
+            bounds,
+        })
+    }
+
+    fn params(&self, p: &[f64]) -> crate::physics::bouc_wen::BoucWenParams {
+        crate::physics::bouc_wen::BoucWenParams {
+            d_e: p[0],
+            alpha: p[1],
+            beta: p[2],
+            gamma: p[3],
+            n: p[4],
+            d0: if self.with_d0 { p[5] } else { 0.0 },
+        }
+    }
+
+    /// Normalised model output on `d`; unstable runs keep the samples before the blow-up
+    /// and hold the last finite value after it (for plots and metrics only).
+    fn simulate(&self, p: &[f64], d: &FitData) -> Vec<f64> {
+        let mut out = vec![0.0; d.u.len()];
+        let status = crate::physics::bouc_wen::simulate(&self.params(p), &d.u, &mut out);
+        if let crate::physics::bouc_wen::SimStatus::Unstable { at } = status {
+            let last = if at > 0 { out[at - 1] } else { 0.0 };
+            out[at..].fill(last);
+        }
+        out
+    }
+}
+
+impl Objective for BoucWenFit {
+    fn name(&self) -> &str {
+        "bouc-wen"
+    }
+
+    fn bounds(&self) -> &Bounds {
+        &self.bounds
+    }
+
+    fn evaluate(&self, p: &[f64]) -> f64 {
+        crate::physics::bouc_wen::cost(&self.params(p), &self.train.u, &self.train.y)
+    }
+
+    fn presentation(&self) -> Option<Presentation> {
+        Some(Presentation {
+            label: format!("train RMSE{}", self.train.unit_suffix()),
+            kind: PresentationKind::RmseFromHalfSse {
+                samples: self.train.u.len(),
+                scale: self.train.y_scale,
+            },
+        })
+    }
+
+    fn metrics(&self, p: &[f64]) -> Vec<Metric> {
+        let unit = self.train.unit_suffix();
+        let mut m = Vec::new();
+        let mut sets = vec![("train", &self.train)];
+        if let Some(v) = &self.validate {
+            sets.push(("validate", v));
+        }
+        for (set, d) in sets {
+            let (max, rms) = errors(&d.y, &self.simulate(p, d), 0, d.y_scale);
+            m.push(Metric::new(format!("{set} RMSE{unit}"), rms));
+            m.push(Metric::new(format!("{set} max error{unit}"), max));
+        }
+        m
+    }
+
+    fn as_fit(&self) -> Option<&dyn FitView> {
+        Some(self)
+    }
+}
+
+impl FitView for BoucWenFit {
+    fn recordings(&self) -> (&Recording, Option<&Recording>) {
+        (&self.recordings.0, self.recordings.1.as_ref())
+    }
+
+    fn outputs(&self, p: &[f64], validate: bool) -> Vec<(String, Vec<f64>)> {
+        let d = if validate {
+            match &self.validate {
+                Some(v) => v,
+                None => return Vec::new(),
+            }
+        } else {
+            &self.train
+        };
+        let y = self
+            .simulate(p, d)
+            .into_iter()
+            .map(|v| v * d.y_scale)
+            .collect();
+        vec![("Bouc-Wen".to_string(), y)]
+    }
+
+    /// d_e, alpha and d0 in the recording's units (output per input, output); beta, gamma
+    /// and n act on the normalised hysteretic state and are shown as fitted.
+    fn named_params(&self, p: &[f64]) -> Vec<(String, f64)> {
+        let (us, ys) = (self.train.u_scale, self.train.y_scale);
+        let (uu, yu) = (&self.recordings.0.units[1], &self.recordings.0.units[2]);
+        let ratio = if uu.is_empty() && yu.is_empty() {
+            String::new()
+        } else {
+            format!(" [{yu}/{uu}]")
+        };
+        let mut v = vec![
+            (format!("d_e{ratio}"), p[0] * ys / us),
+            (format!("alpha{ratio}"), p[1] * ys / us),
+            ("beta (normalised)".into(), p[2]),
+            ("gamma (normalised)".into(), p[3]),
+            ("n".into(), p[4]),
+        ];
+        if self.with_d0 {
+            v.push((format!("d0 [{yu}]"), p[5] * ys));
+        }
+        v
+    }
+}

@@ -10,6 +10,7 @@
 
 use crate::error::{Error, Result};
 use crate::physics::rbf;
+use crate::physics::twin::{self, TwinConfig};
 use crate::recording::{Columns, ReadOptions, Recording, data_dir};
 use crate::signal::Signal;
 use std::path::{Path, PathBuf};
@@ -112,6 +113,16 @@ impl Source {
         }
     }
 }
-fn twin_recording(_s: &Signal, _u: Vec<f64>, _o: &SimOptions) -> Result<Recording> {
-    Err(Error::Input("twin not yet available".into()))
+/// The twin driven by `u` (samples of `signal`), with the options' overrides and seed.
+fn twin_recording(signal: &Signal, u: Vec<f64>, opts: &SimOptions) -> Result<Recording> {
+    let cfg = TwinConfig::parse_overrides(&opts.twin)?;
+    let name = if opts.twin.is_empty() {
+        format!("twin driven by {signal} (seed {})", opts.seed)
+    } else {
+        format!(
+            "twin [{}] driven by {signal} (seed {})",
+            opts.twin, opts.seed
+        )
+    };
+    twin::recording(&cfg, name, u, opts.dt, opts.seed)
 }
