@@ -220,6 +220,12 @@ const BOUC_WEN_PARAMS: &[Spec] = recording_params![
         help: "also fit the offset d0 (the seed fitted d_e, alpha, beta, gamma, n)",
     },
     Spec {
+        name: "normalize",
+        kind: Kind::Bool,
+        default: D::Bool(true),
+        help: "fit on input and output divided by their largest |value| (false: the recording's units, as the seed's bounds suggest for V and mm)",
+    },
+    Spec {
         name: "lower",
         kind: Kind::Float {
             min: f64::NEG_INFINITY,
@@ -245,6 +251,7 @@ fn build_bouc_wen(p: &Params) -> Result<Arc<dyn Objective>, Error> {
         &train,
         validate.as_ref(),
         p.bool("d0"),
+        p.bool("normalize"),
         p.float("lower"),
         p.float("upper"),
     )

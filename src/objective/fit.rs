@@ -265,84 +265,6 @@ impl Objective for RbfFit {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn eq318_recording(n: usize) -> Recording {
-        let r: Vec<f64> = (0..n)
-            .map(|k| (2.0 * std::f64::consts::PI * 20.0 * k as f64 * 1e-3).sin())
-            .collect();
-        let y = rbf::eq_3_18(&r);
-        Recording::uniform("eq318", 1e-3, r, y).unwrap()
-    }
-
-    #[test]
-    fn costs_are_finite_and_presented_as_rmse() {
-        let rec = eq318_recording(500);
-        let fit = RbfFit::new(
-            &rec,
-            Some(&rec),
-            RbfNet::new(3, 7),
-            Narx::SEED,
-            Mode::FreeRun,
-        )
-        .unwrap();
-        assert_eq!(fit.dim(), 35);
-        let p: Vec<f64> = fit
-            .bounds()
-            .lower()
-            .iter()
-            .zip(fit.bounds().upper())
-            .map(|(l, u)| 0.5 * (l + u))
-            .collect();
-        let j = fit.evaluate(&p);
-        assert!(j.is_finite() && j > 0.0);
-        // The presented RMSE equals the free-run RMSE metric on the training data.
-        let rmse = fit.presentation().unwrap().apply(j);
-        let m = fit.metrics(&p);
-        let free = m
-            .iter()
-            .find(|m| m.name == "train free-run RMSE")
-            .unwrap()
-            .value;
-        assert!(
-            (rmse - free).abs() < 1e-12 * (1.0 + free),
-            "{rmse} vs {free}"
-        );
-        assert_eq!(
-            m.len(),
-            8,
-            "train and validate x one-step and free-run x RMSE and max"
-        );
-        // Hostile parameters: finite.
-        let hostile = vec![f64::MAX; 35];
-        assert!(fit.evaluate(&hostile).is_finite());
-    }
-
-    #[test]
-    fn one_step_mode_has_the_gradient_of_its_cost() {
-        let rec = eq318_recording(300);
-        let fit = RbfFit::new(
-            &rec,
-            None,
-            RbfNet::new(3, 7),
-            Narx::SEED,
-            Mode::OneStepAhead,
-        )
-        .unwrap();
-        assert!(fit.has_gradient());
-        let mut rng = crate::harness::TrialSeed::from_u64(9).rng(0);
-        let mut p = vec![0.0; 35];
-        fit.bounds().sample(&mut rng, &mut p);
-        let mut g = vec![0.0; 35];
-        let j = fit.value_and_gradient(&p, &mut g).unwrap();
-        assert_eq!(j, fit.evaluate(&p));
-        let free = RbfFit::new(&rec, None, RbfNet::new(3, 7), Narx::SEED, Mode::FreeRun).unwrap();
-        assert!(!free.has_gradient());
-    }
-}
-
 /// Fit of the seed's Bouc-Wen model (eq. 3.1-3.3) to a recording: parameters
 /// (d_e, alpha, beta, gamma, n) and optionally d0, in normalised units, cost from a free-run
 /// simulation (eq. 3.8-3.9). Unstable parameters cost a large finite penalty.
@@ -358,15 +280,17 @@ pub struct BoucWenFit {
 pub const BOUC_WEN_PARAMS: [&str; 6] = ["d_e", "alpha", "beta", "gamma", "n", "d0"];
 
 impl BoucWenFit {
-    /// The fit on `train` with every parameter in `[lower, upper]` (the seed: [0, 1.5]).
+    /// The fit on `train` with every parameter in `[lower, upper]` (the seed: [0, 1.5]),
+    /// on normalised data or in the recording's own units.
     pub fn new(
         train: &Recording,
         validate: Option<&Recording>,
         with_d0: bool,
+        normalize: bool,
         lower: f64,
         upper: f64,
     ) -> Result<Self> {
-        let data = FitData::new(train, true)?;
+        let data = FitData::new(train, normalize)?;
         let dim = if with_d0 { 6 } else { 5 };
         let bounds = Bounds::uniform(dim, lower, upper).map_err(Error::Input)?;
         Ok(BoucWenFit {
@@ -468,8 +392,10 @@ impl FitView for BoucWenFit {
     }
 
     /// d_e, alpha and d0 in the recording's units (output per input, output); beta, gamma
-    /// and n act on the normalised hysteretic state and are shown as fitted.
+    /// and n as fitted (on normalised data they act on the normalised state).
     fn named_params(&self, p: &[f64]) -> Vec<(String, f64)> {
+        let scaled = self.train.u_scale != 1.0 || self.train.y_scale != 1.0;
+        let tag = if scaled { " (normalised)" } else { "" };
         let (us, ys) = (self.train.u_scale, self.train.y_scale);
         let (uu, yu) = (&self.recordings.0.units[1], &self.recordings.0.units[2]);
         let ratio = if uu.is_empty() && yu.is_empty() {
@@ -480,13 +406,91 @@ impl FitView for BoucWenFit {
         let mut v = vec![
             (format!("d_e{ratio}"), p[0] * ys / us),
             (format!("alpha{ratio}"), p[1] * ys / us),
-            ("beta (normalised)".into(), p[2]),
-            ("gamma (normalised)".into(), p[3]),
+            (format!("beta{tag}"), p[2]),
+            (format!("gamma{tag}"), p[3]),
             ("n".into(), p[4]),
         ];
         if self.with_d0 {
             v.push((format!("d0 [{yu}]"), p[5] * ys));
         }
         v
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn eq318_recording(n: usize) -> Recording {
+        let r: Vec<f64> = (0..n)
+            .map(|k| (2.0 * std::f64::consts::PI * 20.0 * k as f64 * 1e-3).sin())
+            .collect();
+        let y = rbf::eq_3_18(&r);
+        Recording::uniform("eq318", 1e-3, r, y).unwrap()
+    }
+
+    #[test]
+    fn costs_are_finite_and_presented_as_rmse() {
+        let rec = eq318_recording(500);
+        let fit = RbfFit::new(
+            &rec,
+            Some(&rec),
+            RbfNet::new(3, 7),
+            Narx::SEED,
+            Mode::FreeRun,
+        )
+        .unwrap();
+        assert_eq!(fit.dim(), 35);
+        let p: Vec<f64> = fit
+            .bounds()
+            .lower()
+            .iter()
+            .zip(fit.bounds().upper())
+            .map(|(l, u)| 0.5 * (l + u))
+            .collect();
+        let j = fit.evaluate(&p);
+        assert!(j.is_finite() && j > 0.0);
+        // The presented RMSE equals the free-run RMSE metric on the training data.
+        let rmse = fit.presentation().unwrap().apply(j);
+        let m = fit.metrics(&p);
+        let free = m
+            .iter()
+            .find(|m| m.name == "train free-run RMSE")
+            .unwrap()
+            .value;
+        assert!(
+            (rmse - free).abs() < 1e-12 * (1.0 + free),
+            "{rmse} vs {free}"
+        );
+        assert_eq!(
+            m.len(),
+            8,
+            "train and validate x one-step and free-run x RMSE and max"
+        );
+        // Hostile parameters: finite.
+        let hostile = vec![f64::MAX; 35];
+        assert!(fit.evaluate(&hostile).is_finite());
+    }
+
+    #[test]
+    fn one_step_mode_has_the_gradient_of_its_cost() {
+        let rec = eq318_recording(300);
+        let fit = RbfFit::new(
+            &rec,
+            None,
+            RbfNet::new(3, 7),
+            Narx::SEED,
+            Mode::OneStepAhead,
+        )
+        .unwrap();
+        assert!(fit.has_gradient());
+        let mut rng = crate::harness::TrialSeed::from_u64(9).rng(0);
+        let mut p = vec![0.0; 35];
+        fit.bounds().sample(&mut rng, &mut p);
+        let mut g = vec![0.0; 35];
+        let j = fit.value_and_gradient(&p, &mut g).unwrap();
+        assert_eq!(j, fit.evaluate(&p));
+        let free = RbfFit::new(&rec, None, RbfNet::new(3, 7), Narx::SEED, Mode::FreeRun).unwrap();
+        assert!(!free.has_gradient());
     }
 }
