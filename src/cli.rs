@@ -49,6 +49,9 @@ pub struct RunArgs {
     /// Override the suite's seed.
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Override every objective's budget (evaluations per trial), e.g. for a quick check.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    pub budget: Option<u64>,
     /// No progress bar and no table.
     #[arg(long, short)]
     pub quiet: bool,
@@ -194,6 +197,11 @@ fn run(args: RunArgs) -> Result<()> {
     }
     if let Some(s) = args.seed {
         suite.seed = s;
+    }
+    if let Some(b) = args.budget {
+        for o in &mut suite.objectives {
+            o.budget = b;
+        }
     }
     let out = args
         .out
