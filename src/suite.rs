@@ -57,6 +57,69 @@ struct RawSuite {
     objectives: Vec<Spanned<RawEntry>>,
     #[serde(rename = "optimizer", default)]
     optimizers: Vec<Spanned<RawEntry>>,
+    #[serde(rename = "table", default)]
+    tables: Vec<Spanned<PaperTable>>,
+}
+
+/// A table laid out like one in a paper, with its published numbers beside ours:
+/// rows x columns of cells `objective:optimizer` (or `objective:optimizer@metric`).
+///
+/// ```toml
+/// [[table]]
+/// id = "table3.2"
+/// title = "Table 3.2: RMS error of Bouc-Wen fits [mm]"
+/// value = "train RMSE [mm]"          # default for cells without @metric; omit: the value
+/// columns = ["GA", "MSGA"]
+/// rows = [
+///   { label = "1 Hz", cells = ["bw-1hz:GA", "bw-1hz:MSGA"], seed = [0.0145, 0.0066] },
+/// ]
+/// ```
+#[derive(Debug, Clone, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PaperTable {
+    pub id: String,
+    pub title: String,
+    #[serde(default)]
+    pub value: Option<String>,
+    #[serde(default)]
+    pub note: Option<String>,
+    pub columns: Vec<String>,
+    pub rows: Vec<PaperRow>,
+}
+
+/// One row of a [`PaperTable`].
+#[derive(Debug, Clone, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PaperRow {
+    pub label: String,
+    pub cells: Vec<String>,
+    /// The published numbers, one per column (nan where the paper has none).
+    #[serde(default)]
+    pub seed: Vec<f64>,
+}
+
+/// A parsed cell reference of a [`PaperTable`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct CellRef {
+    pub objective: String,
+    pub optimizer: String,
+    pub metric: Option<String>,
+}
+
+impl CellRef {
+    /// Parses `objective:optimizer[@metric]`.
+    pub fn parse(s: &str) -> Option<CellRef> {
+        let (cell, metric) = match s.split_once('@') {
+            Some((c, m)) => (c, Some(m.trim().to_string())),
+            None => (s, None),
+        };
+        let (o, p) = cell.split_once(':')?;
+        Some(CellRef {
+            objective: o.trim().into(),
+            optimizer: p.trim().into(),
+            metric,
+        })
+    }
 }
 
 /// One objective of a suite, built and validated.
@@ -107,6 +170,8 @@ pub struct Suite {
     pub trials: usize,
     pub objectives: Vec<ObjectiveEntry>,
     pub optimizers: Vec<OptimizerEntry>,
+    /// Paper-layout tables for the report.
+    pub tables: Vec<PaperTable>,
 }
 
 /// One (objective, optimizer, trial) cell of the plan.
@@ -313,7 +378,16 @@ impl Suite {
             }
         }
 
+        let mut tables = Vec::new();
+        for t in &raw.tables {
+            let line = line_of(text, t.span().start);
+            check_table(t.get_ref(), &objectives, &optimizers)
+                .map_err(|m| Error::at(path, line, format!("table `{}`: {m}", t.get_ref().id)))?;
+            tables.push(t.get_ref().clone());
+        }
+
         Ok(Suite {
+            tables,
             path: path.to_path_buf(),
             text: text.to_string(),
             name,
@@ -351,6 +425,73 @@ impl Suite {
             t.trial as u64,
         )
     }
+}
+
+/// Checks a paper table's shape and that every cell names an objective x optimizer that
+/// runs (and, for `@metric`, a metric the objective reports).
+fn check_table(
+    t: &PaperTable,
+    objectives: &[ObjectiveEntry],
+    optimizers: &[OptimizerEntry],
+) -> std::result::Result<(), String> {
+    let n = t.columns.len();
+    for row in &t.rows {
+        if row.cells.len() != n {
+            return Err(format!(
+                "row `{}` has {} cells for {n} columns",
+                row.label,
+                row.cells.len()
+            ));
+        }
+        if !row.seed.is_empty() && row.seed.len() != n {
+            return Err(format!(
+                "row `{}` has {} seed values for {n} columns",
+                row.label,
+                row.seed.len()
+            ));
+        }
+        for c in &row.cells {
+            let r = CellRef::parse(c)
+                .ok_or_else(|| format!("cell `{c}`: expected objective:optimizer[@metric]"))?;
+            let obj = objectives
+                .iter()
+                .find(|o| o.id == r.objective)
+                .ok_or_else(|| format!("cell `{c}`: no objective `{}`", r.objective))?;
+            let opt = optimizers
+                .iter()
+                .position(|o| o.id == r.optimizer)
+                .ok_or_else(|| format!("cell `{c}`: no optimizer `{}`", r.optimizer))?;
+            if !obj.optimizers.contains(&opt) {
+                return Err(format!(
+                    "cell `{c}`: `{}` does not run on `{}`",
+                    r.optimizer, r.objective
+                ));
+            }
+            if let Some(m) = r.metric.as_ref().or(t.value.as_ref()) {
+                let b = obj.objective.bounds();
+                let mid: Vec<f64> = b
+                    .lower()
+                    .iter()
+                    .zip(b.upper())
+                    .map(|(l, u)| 0.5 * (l + u))
+                    .collect();
+                let names: Vec<String> = obj
+                    .objective
+                    .metrics(&mid)
+                    .into_iter()
+                    .map(|m| m.name)
+                    .collect();
+                if !names.contains(m) {
+                    return Err(format!(
+                        "cell `{c}`: objective `{}` reports no metric `{m}`; it reports: {}",
+                        r.objective,
+                        names.join(", ")
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 fn positive_budget(b: i64) -> std::result::Result<u64, String> {

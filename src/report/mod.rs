@@ -122,13 +122,30 @@ pub fn generate(dir: &Path) -> Result<String> {
     let run = StoredRun::load(dir)?;
     let a = run.analyse();
 
-    atomic_write(
-        &dir.join("report.md"),
-        paper::report_markdown(&a).as_bytes(),
-    )?;
     let tables = dir.join("tables");
     std::fs::create_dir_all(&tables)
         .map_err(|e| Error::io(format!("creating {}", tables.display()), e))?;
+    let mut md = String::new();
+    if !run.suite.tables.is_empty() {
+        md += "## Tables laid out as in the seed\n\n";
+        for t in &run.suite.tables {
+            let table = paper::paper_table_markdown(t, &a);
+            md += &table;
+            md.push('\n');
+            atomic_write(&tables.join(format!("{}.md", t.id)), table.as_bytes())?;
+            atomic_write(
+                &tables.join(format!("{}.tex", t.id)),
+                paper::paper_table_latex(t, &a).as_bytes(),
+            )?;
+        }
+    }
+    let report = paper::report_markdown(&a);
+    let report = match report.split_once("\n## ") {
+        // The paper tables go after the main table, before the details.
+        Some((head, rest)) if !md.is_empty() => format!("{head}\n{md}## {rest}"),
+        _ => report,
+    };
+    atomic_write(&dir.join("report.md"), report.as_bytes())?;
     atomic_write(
         &tables.join("summary.md"),
         paper::summary_markdown(&a).as_bytes(),

@@ -547,3 +547,119 @@ mod tests {
         assert_eq!(latex_num(12.0), "$12.0$");
     }
 }
+
+/// The median and 95 % interval a paper-table cell shows, if the run has it.
+fn paper_cell(
+    a: &Analysis,
+    cell: &str,
+    default_metric: Option<&String>,
+) -> Option<(f64, (f64, f64))> {
+    let r = crate::suite::CellRef::parse(cell)?;
+    let o = a.objectives.iter().find(|o| o.id == r.objective)?;
+    let c = o.cells.iter().find(|c| c.optimizer == r.optimizer)?;
+    match r.metric.as_ref().or(default_metric) {
+        Some(m) => {
+            let ms = c.metrics.iter().find(|x| &x.name == m)?;
+            Some((ms.stats.median, ms.median_ci))
+        }
+        None => Some((c.stats.median, c.median_ci)),
+    }
+}
+
+/// A suite's paper-layout table: our median [95 % CI] with the paper's number beside it.
+pub fn paper_table_markdown(t: &crate::suite::PaperTable, a: &Analysis) -> String {
+    let mut header = vec![String::new()];
+    header.extend(t.columns.iter().cloned());
+    let rows: Vec<Vec<String>> = t
+        .rows
+        .iter()
+        .map(|row| {
+            let mut r = vec![row.label.clone()];
+            for (i, cell) in row.cells.iter().enumerate() {
+                let ours = match paper_cell(a, cell, t.value.as_ref()) {
+                    Some((m, (lo, hi))) => {
+                        format!("{} [{}, {}]", sig(m, 3), sig(lo, 3), sig(hi, 3))
+                    }
+                    None => "not run".into(),
+                };
+                let seed = row.seed.get(i).copied().filter(|v| v.is_finite());
+                r.push(match seed {
+                    Some(v) => format!("{ours} (seed {})", sig(v, 3)),
+                    None => ours,
+                });
+            }
+            r
+        })
+        .collect();
+    let h: Vec<&str> = header.iter().map(String::as_str).collect();
+    let right: Vec<bool> = (0..h.len()).map(|i| i > 0).collect();
+    let mut s = format!("**{}**", t.title);
+    if let Some(v) = &t.value {
+        s += &format!(
+            " ({v}; ours: median [95% CI] over trials; the seed's single run in brackets)"
+        );
+    } else {
+        s += " (ours: median [95% CI] over trials; the seed's single run in brackets)";
+    }
+    s += "\n\n";
+    s += &markdown(&h, &rows, &right);
+    if let Some(n) = &t.note {
+        s += &format!("\n{n}\n");
+    }
+    s
+}
+
+/// The same table in LaTeX (booktabs): ours above, the seed's number below in grey-free
+/// parentheses, so it prints in black and white.
+pub fn paper_table_latex(t: &crate::suite::PaperTable, a: &Analysis) -> String {
+    let mut s = String::new();
+    writeln!(s, "% optbench: {} ({})", t.id, a.suite).unwrap();
+    writeln!(s, "\\begin{{table}}[t]\n\\centering").unwrap();
+    writeln!(
+        s,
+        "\\caption{{{} Ours: median over trials (95\\,\\% bootstrap interval); the seed's single run in parentheses.}}",
+        latex_escape(&t.title)
+    )
+    .unwrap();
+    writeln!(
+        s,
+        "\\begin{{tabular}}{{l{}}}\n\\toprule",
+        "r".repeat(t.columns.len())
+    )
+    .unwrap();
+    let head: Vec<String> = t.columns.iter().map(|c| latex_escape(c)).collect();
+    writeln!(s, " & {} \\\\\n\\midrule", head.join(" & ")).unwrap();
+    for row in &t.rows {
+        let ours: Vec<String> = row
+            .cells
+            .iter()
+            .map(|c| match paper_cell(a, c, t.value.as_ref()) {
+                Some((m, _)) => latex_num(m),
+                None => "--".into(),
+            })
+            .collect();
+        writeln!(
+            s,
+            "{} & {} \\\\",
+            latex_escape(&row.label),
+            ours.join(" & ")
+        )
+        .unwrap();
+        if !row.seed.is_empty() {
+            let seed: Vec<String> = row
+                .seed
+                .iter()
+                .map(|v| {
+                    if v.is_finite() {
+                        format!("({})", latex_num(*v))
+                    } else {
+                        String::new()
+                    }
+                })
+                .collect();
+            writeln!(s, " & {} \\\\", seed.join(" & ")).unwrap();
+        }
+    }
+    writeln!(s, "\\bottomrule\n\\end{{tabular}}\n\\end{{table}}").unwrap();
+    s
+}
