@@ -459,95 +459,6 @@ pub fn csv_tables(a: &Analysis) -> Vec<(&'static str, String)> {
     ]
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::harness::TrialRecord;
-    use crate::report::analysis::{ObjectiveInfo, analyse};
-
-    fn rec(opt: &str, trial: usize, best: f64) -> TrialRecord {
-        TrialRecord {
-            objective: "f_1".into(),
-            optimizer: opt.into(),
-            trial,
-            seed: String::new(),
-            budget: 100,
-            evaluations: 100,
-            best,
-            best_x: vec![0.0],
-            optimum: Some(0.0),
-            stopped_at_target: false,
-            nonfinite: 0,
-            wall_s: 0.0,
-            improvements: vec![(1, 10.0), (50, best)],
-            checkpoints: vec![],
-        }
-    }
-
-    /// "good" and "same" overlap; "bad" is far worse in every trial.
-    fn analysis() -> Analysis {
-        let mut r = Vec::new();
-        for t in 0..12 {
-            r.push(rec("good", t, 0.01 * (1.0 + t as f64)));
-            r.push(rec("same", t, 0.01 * (1.5 + t as f64)));
-            r.push(rec("bad", t, 5.0 + t as f64));
-        }
-        let info = [ObjectiveInfo {
-            id: "f_1".into(),
-            dim: 1,
-            targets: vec![1.0, 0.05],
-            label: None,
-        }];
-        analyse("s", 1, &info, &r, &Default::default())
-    }
-
-    #[test]
-    fn latex_bolds_the_best_and_marks_significant_differences() {
-        let a = analysis();
-        let tex = summary_latex(&a);
-        assert!(tex.contains("\\toprule") && tex.contains("\\bottomrule"));
-        assert!(tex.contains("Objective & good & same & bad \\\\"), "{tex}");
-        let row = tex.lines().find(|l| l.starts_with("f\\_1 &")).unwrap();
-        let cells: Vec<&str> = row.trim_end_matches(" \\\\").split(" & ").collect();
-        assert_eq!(cells[1], "\\textbf{$0.0650$}");
-        assert!(
-            !cells[2].contains("dagger"),
-            "overlapping runs are not different: {row}"
-        );
-        assert!(cells[3].ends_with("$^\\dagger$"), "{row}");
-    }
-
-    #[test]
-    fn markdown_and_csv_agree_with_the_analysis() {
-        let a = analysis();
-        let md = summary_markdown(&a);
-        assert!(md.contains("**0.0650 ["), "{md}");
-        let bad = md.lines().find(|l| l.contains("| bad")).unwrap();
-        assert!(bad.trim_end().ends_with("* |"), "{bad}");
-        let csv = csv_tables(&a);
-        let table = |name: &str| csv.iter().find(|(n, _)| *n == name).unwrap().1.clone();
-        let summary = table("summary.csv");
-        assert_eq!(summary.lines().count(), 4);
-        assert!(
-            summary
-                .lines()
-                .nth(1)
-                .unwrap()
-                .starts_with("f_1,good,12,6.5e-2,")
-        );
-        let ert = table("ert.csv");
-        // Every run reaches error 1.0 at evaluation 50 except "bad" (never).
-        assert!(ert.contains("f_1,good,1e0,12,12,1,5e1"), "{ert}");
-        assert!(ert.contains("f_1,bad,1e0,0,12,0,\n"), "{ert}");
-    }
-
-    #[test]
-    fn latex_numbers() {
-        assert_eq!(latex_num(0.000_012_3), "$1.23\\cdot10^{-5}$");
-        assert_eq!(latex_num(12.0), "$12.0$");
-    }
-}
-
 /// The median and 95 % interval a paper-table cell shows, if the run has it.
 fn paper_cell(
     a: &Analysis,
@@ -662,4 +573,93 @@ pub fn paper_table_latex(t: &crate::suite::PaperTable, a: &Analysis) -> String {
     }
     writeln!(s, "\\bottomrule\n\\end{{tabular}}\n\\end{{table}}").unwrap();
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::harness::TrialRecord;
+    use crate::report::analysis::{ObjectiveInfo, analyse};
+
+    fn rec(opt: &str, trial: usize, best: f64) -> TrialRecord {
+        TrialRecord {
+            objective: "f_1".into(),
+            optimizer: opt.into(),
+            trial,
+            seed: String::new(),
+            budget: 100,
+            evaluations: 100,
+            best,
+            best_x: vec![0.0],
+            optimum: Some(0.0),
+            stopped_at_target: false,
+            nonfinite: 0,
+            wall_s: 0.0,
+            improvements: vec![(1, 10.0), (50, best)],
+            checkpoints: vec![],
+        }
+    }
+
+    /// "good" and "same" overlap; "bad" is far worse in every trial.
+    fn analysis() -> Analysis {
+        let mut r = Vec::new();
+        for t in 0..12 {
+            r.push(rec("good", t, 0.01 * (1.0 + t as f64)));
+            r.push(rec("same", t, 0.01 * (1.5 + t as f64)));
+            r.push(rec("bad", t, 5.0 + t as f64));
+        }
+        let info = [ObjectiveInfo {
+            id: "f_1".into(),
+            dim: 1,
+            targets: vec![1.0, 0.05],
+            label: None,
+        }];
+        analyse("s", 1, &info, &r, &Default::default())
+    }
+
+    #[test]
+    fn latex_bolds_the_best_and_marks_significant_differences() {
+        let a = analysis();
+        let tex = summary_latex(&a);
+        assert!(tex.contains("\\toprule") && tex.contains("\\bottomrule"));
+        assert!(tex.contains("Objective & good & same & bad \\\\"), "{tex}");
+        let row = tex.lines().find(|l| l.starts_with("f\\_1 &")).unwrap();
+        let cells: Vec<&str> = row.trim_end_matches(" \\\\").split(" & ").collect();
+        assert_eq!(cells[1], "\\textbf{$0.0650$}");
+        assert!(
+            !cells[2].contains("dagger"),
+            "overlapping runs are not different: {row}"
+        );
+        assert!(cells[3].ends_with("$^\\dagger$"), "{row}");
+    }
+
+    #[test]
+    fn markdown_and_csv_agree_with_the_analysis() {
+        let a = analysis();
+        let md = summary_markdown(&a);
+        assert!(md.contains("**0.0650 ["), "{md}");
+        let bad = md.lines().find(|l| l.contains("| bad")).unwrap();
+        assert!(bad.trim_end().ends_with("* |"), "{bad}");
+        let csv = csv_tables(&a);
+        let table = |name: &str| csv.iter().find(|(n, _)| *n == name).unwrap().1.clone();
+        let summary = table("summary.csv");
+        assert_eq!(summary.lines().count(), 4);
+        assert!(
+            summary
+                .lines()
+                .nth(1)
+                .unwrap()
+                .starts_with("f_1,good,12,6.5e-2,")
+        );
+        let ert = table("ert.csv");
+        // Every run reaches error 1.0 at evaluation 50 except "bad" (never).
+        assert!(ert.contains("f_1,good,1e0,12,12,1,5e1"), "{ert}");
+        assert!(ert.contains("f_1,bad,1e0,0,12,0,\n"), "{ert}");
+    }
+
+    #[test]
+    fn latex_numbers() {
+        assert_eq!(latex_num(0.000_012_3), "$1.23\\cdot10^{-5}$");
+        assert_eq!(latex_num(12.0), "$12.0$");
+    }
 }
