@@ -71,7 +71,7 @@ struct FitSummary<'a> {
     model: &'a str,
     optimizer: &'a str,
     recording: String,
-    validate: Option<String>,
+    validate: Vec<String>,
     seed: u64,
     budget: u64,
     evaluations: u64,
@@ -163,12 +163,13 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
         .map_err(|e| Error::io(format!("creating {}", req.out.display()), e))?;
     let metrics = objective.metrics(&record.best_x);
     let named = view.named_params(&record.best_x);
-    let (train, validate) = view.recordings();
+    let recs = view.recordings();
+    let train = recs[0].1;
     let summary = FitSummary {
         model: &req.model,
         optimizer: &req.optimizer,
         recording: train.name.clone(),
-        validate: validate.map(|v| v.name.clone()),
+        validate: recs[1..].iter().map(|(_, r)| r.name.clone()).collect(),
         seed: req.seed,
         budget: req.budget,
         evaluations: record.evaluations,
@@ -229,13 +230,8 @@ fn write_figures(dir: &Path, objective: &dyn Objective, record: &TrialRecord) ->
         &format!("best-so-far {label}"),
         true,
     )?;
-    let (train, validate) = view.recordings();
-    let mut sets = vec![("train", train, false)];
-    if let Some(v) = validate {
-        sets.push(("validate", v, true));
-    }
-    for (set, rec, is_val) in sets {
-        let models = view.outputs(&record.best_x, is_val);
+    for (i, (set, rec)) in view.recordings().into_iter().enumerate() {
+        let models = view.outputs(&record.best_x, i);
         let unit = |i: usize| {
             if rec.units[i].is_empty() {
                 String::new()

@@ -100,7 +100,19 @@ macro_rules! recording_params {
                 name: "validate",
                 kind: Kind::Text,
                 default: D::Derived("none"),
-                help: "held-out recording, same forms (metrics only, never fitted)",
+                help: "held-out recordings, same forms, separated by \" | \" (metrics only, never fitted)",
+            },
+            Spec {
+                name: "first",
+                kind: Kind::Int { min: 0, max: i64::MAX },
+                default: D::Int(0),
+                help: "first training sample used",
+            },
+            Spec {
+                name: "samples",
+                kind: Kind::Int { min: 8, max: i64::MAX },
+                default: D::Derived("all from `first` on"),
+                help: "number of training samples used",
             },
             Spec {
                 name: "columns",
@@ -143,8 +155,9 @@ macro_rules! recording_params {
     };
 }
 
-/// The training and (optional) validation recordings named by a fitting objective.
-fn recordings(p: &Params) -> Result<(Recording, Option<Recording>), Error> {
+/// The training recording (sliced by `first`/`samples`) and the labelled validation
+/// recordings (`validate = "A | B"`) named by a fitting objective.
+fn recordings(p: &Params) -> Result<(Recording, Vec<(String, Recording)>), Error> {
     let base = p.file().parent().unwrap_or(Path::new(".")).to_path_buf();
     let sim = |duration: Option<f64>| SimOptions {
         duration,
@@ -152,17 +165,49 @@ fn recordings(p: &Params) -> Result<(Recording, Option<Recording>), Error> {
         twin: p.str("twin").to_string(),
         seed: p.int("seed") as u64,
     };
-    let load = |key: &str, duration: Option<f64>| -> Result<Recording, Error> {
-        let spec = p.str(key);
+    let load = |key: &str, spec: &str, duration: Option<f64>| -> Result<Recording, Error> {
         Source::parse(spec, &base, p.str("columns"), sim(duration))
             .and_then(|s| s.load())
             .map_err(|e| p.error(key, e))
     };
-    let train = load("recording", p.opt_float("duration"))?;
-    let validate = match p.opt_str("validate") {
-        Some(_) => Some(load("validate", p.opt_float("validate_duration"))?),
-        None => None,
+    let mut train = load("recording", p.str("recording"), p.opt_float("duration"))?;
+    let first = p.usize("first");
+    let end = match p.opt_int("samples") {
+        Some(n) => first.saturating_add(n as usize),
+        None => train.len(),
     };
+    if first > 0 || end < train.len() {
+        if end > train.len() {
+            return Err(p.error(
+                "samples",
+                format!(
+                    "samples {first}..{end} requested but the recording has {}",
+                    train.len()
+                ),
+            ));
+        }
+        train = train.slice(first..end).map_err(|e| p.error("samples", e))?;
+    }
+    let mut validate = Vec::new();
+    if let Some(specs) = p.opt_str("validate") {
+        let specs: Vec<&str> = specs.split(" | ").map(str::trim).collect();
+        for (i, spec) in specs.iter().enumerate() {
+            let label = if specs.len() == 1 {
+                "validate".to_string()
+            } else if spec.contains(':') && !spec.starts_with('$') && !spec.contains('/') {
+                format!("validate{}", i + 1)
+            } else {
+                Path::new(spec)
+                    .file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_else(|| format!("validate{}", i + 1))
+            };
+            validate.push((
+                label,
+                load("validate", spec, p.opt_float("validate_duration"))?,
+            ));
+        }
+    }
     Ok((train, validate))
 }
 
@@ -207,8 +252,7 @@ fn build_rbf(p: &Params) -> Result<Arc<dyn Objective>, Error> {
         "free-run" => Mode::FreeRun,
         _ => Mode::OneStepAhead,
     };
-    let fit =
-        RbfFit::new(&train, validate.as_ref(), net, narx, mode).map_err(|e| p.entry_error(e))?;
+    let fit = RbfFit::new(&train, &validate, net, narx, mode).map_err(|e| p.entry_error(e))?;
     Ok(Arc::new(fit))
 }
 
@@ -249,7 +293,7 @@ fn build_bouc_wen(p: &Params) -> Result<Arc<dyn Objective>, Error> {
     let (train, validate) = recordings(p)?;
     let fit = BoucWenFit::new(
         &train,
-        validate.as_ref(),
+        &validate,
         p.bool("d0"),
         p.bool("normalize"),
         p.float("lower"),

@@ -71,12 +71,60 @@ impl FitData {
 
 /// What `optbench fit` shows of a fitting objective, in the recording's units.
 pub trait FitView {
-    /// The training recording and the validation one, if any.
-    fn recordings(&self) -> (&Recording, Option<&Recording>);
-    /// Model outputs at parameters `p` on the training (or validation) recording, labelled.
-    fn outputs(&self, p: &[f64], validate: bool) -> Vec<(String, Vec<f64>)>;
+    /// The recordings with their labels: `train` first, then the validation ones.
+    fn recordings(&self) -> Vec<(&str, &Recording)>;
+    /// Model outputs at parameters `p` on recording `set` (an index into
+    /// [`FitView::recordings`]), labelled.
+    fn outputs(&self, p: &[f64], set: usize) -> Vec<(String, Vec<f64>)>;
     /// Parameters by name, in physical units where they have them.
     fn named_params(&self, p: &[f64]) -> Vec<(String, f64)>;
+}
+
+/// The training recording and any number of labelled validation recordings, scaled alike.
+#[derive(Debug, Clone)]
+pub struct Datasets {
+    recordings: Vec<(String, Recording)>,
+    scaled: Vec<FitData>,
+}
+
+impl Datasets {
+    /// `train` scaled by its own largest values (or not at all), `validate` like it.
+    pub fn new(
+        train: &Recording,
+        validate: &[(String, Recording)],
+        normalize: bool,
+    ) -> Result<Self> {
+        let t = FitData::new(train, normalize)?;
+        let mut scaled = vec![t.clone()];
+        scaled.extend(validate.iter().map(|(_, r)| t.like(r)));
+        let mut recordings = vec![("train".to_string(), train.clone())];
+        recordings.extend(validate.iter().cloned());
+        Ok(Datasets { recordings, scaled })
+    }
+
+    /// The training data.
+    pub fn train(&self) -> &FitData {
+        &self.scaled[0]
+    }
+
+    /// (label, scaled data) of every set, training first.
+    pub fn sets(&self) -> impl Iterator<Item = (&str, &FitData)> {
+        self.recordings
+            .iter()
+            .map(|(l, _)| l.as_str())
+            .zip(&self.scaled)
+    }
+
+    fn get(&self, set: usize) -> Option<&FitData> {
+        self.scaled.get(set)
+    }
+
+    fn recordings(&self) -> Vec<(&str, &Recording)> {
+        self.recordings
+            .iter()
+            .map(|(l, r)| (l.as_str(), r))
+            .collect()
+    }
 }
 
 /// Max |e| and RMS of `model - measured` from `start`, in physical units.
@@ -90,19 +138,17 @@ pub struct RbfFit {
     net: RbfNet,
     narx: Narx,
     mode: Mode,
-    train: FitData,
-    validate: Option<FitData>,
-    recordings: (Recording, Option<Recording>),
+    data: Datasets,
     regressors: Regressors,
     bounds: Bounds,
 }
 
 impl RbfFit {
     /// The fit of `net` with regressors `narx` on `train`, optimised in `mode`; metrics also
-    /// on `validate` when given.
+    /// on every `validate` recording.
     pub fn new(
         train: &Recording,
-        validate: Option<&Recording>,
+        validate: &[(String, Recording)],
         net: RbfNet,
         narx: Narx,
         mode: Mode,
@@ -114,19 +160,17 @@ impl RbfFit {
                 narx.dim()
             )));
         }
-        let data = FitData::new(train, true)?;
-        let regressors = Regressors::new(&narx, &data.u, &data.y);
+        let data = Datasets::new(train, validate, true)?;
+        let regressors = Regressors::new(&narx, &data.train().u, &data.train().y);
         let (lo, hi) = regressors.input_ranges();
         let (ylo, yhi) = regressors.output_range();
         let (lower, upper) = rbf::param_bounds(&net, &lo, &hi, ylo, yhi);
         let bounds = Bounds::new(lower, upper).map_err(Error::Input)?;
         Ok(RbfFit {
-            validate: validate.map(|v| data.like(v)),
-            recordings: (train.clone(), validate.cloned()),
             net,
             narx,
             mode,
-            train: data,
+            data,
             regressors,
             bounds,
         })
@@ -141,18 +185,13 @@ impl RbfFit {
 }
 
 impl FitView for RbfFit {
-    fn recordings(&self) -> (&Recording, Option<&Recording>) {
-        (&self.recordings.0, self.recordings.1.as_ref())
+    fn recordings(&self) -> Vec<(&str, &Recording)> {
+        self.data.recordings()
     }
 
-    fn outputs(&self, p: &[f64], validate: bool) -> Vec<(String, Vec<f64>)> {
-        let d = if validate {
-            match &self.validate {
-                Some(v) => v,
-                None => return Vec::new(),
-            }
-        } else {
-            &self.train
+    fn outputs(&self, p: &[f64], set: usize) -> Vec<(String, Vec<f64>)> {
+        let Some(d) = self.data.get(set) else {
+            return Vec::new();
         };
         [
             (Mode::OneStepAhead, "RBF one-step"),
@@ -205,8 +244,8 @@ impl Objective for RbfFit {
                 &self.net,
                 &self.narx,
                 p,
-                &self.train.u,
-                &self.train.y,
+                &self.data.train().u,
+                &self.data.train().y,
                 Mode::FreeRun,
             ),
         }
@@ -228,11 +267,12 @@ impl Objective for RbfFit {
             Mode::OneStepAhead => "one-step",
             Mode::FreeRun => "free-run",
         };
+        let t = self.data.train();
         Some(Presentation {
-            label: format!("train {mode} RMSE{}", self.train.unit_suffix()),
+            label: format!("train {mode} RMSE{}", t.unit_suffix()),
             kind: PresentationKind::RmseFromHalfSse {
-                samples: self.train.u.len() - self.narx.start(),
-                scale: self.train.y_scale,
+                samples: t.u.len() - self.narx.start(),
+                scale: t.y_scale,
             },
         })
     }
@@ -244,14 +284,10 @@ impl Objective for RbfFit {
     /// Both modes always: one-step-ahead (measured past outputs, flattering) and free-run
     /// (the model's own), on training and validation data.
     fn metrics(&self, p: &[f64]) -> Vec<Metric> {
-        let unit = self.train.unit_suffix();
+        let unit = self.data.train().unit_suffix();
         let start = self.narx.start();
         let mut m = Vec::new();
-        let mut sets = vec![("train", &self.train)];
-        if let Some(v) = &self.validate {
-            sets.push(("validate", v));
-        }
-        for (set, d) in sets {
+        for (set, d) in self.data.sets() {
             for (mode, name) in [
                 (Mode::OneStepAhead, "one-step"),
                 (Mode::FreeRun, "free-run"),
@@ -270,9 +306,7 @@ impl Objective for RbfFit {
 /// simulation (eq. 3.8-3.9). Unstable parameters cost a large finite penalty.
 pub struct BoucWenFit {
     with_d0: bool,
-    train: FitData,
-    validate: Option<FitData>,
-    recordings: (Recording, Option<Recording>),
+    data: Datasets,
     bounds: Bounds,
 }
 
@@ -284,20 +318,18 @@ impl BoucWenFit {
     /// on normalised data or in the recording's own units.
     pub fn new(
         train: &Recording,
-        validate: Option<&Recording>,
+        validate: &[(String, Recording)],
         with_d0: bool,
         normalize: bool,
         lower: f64,
         upper: f64,
     ) -> Result<Self> {
-        let data = FitData::new(train, normalize)?;
+        let data = Datasets::new(train, validate, normalize)?;
         let dim = if with_d0 { 6 } else { 5 };
         let bounds = Bounds::uniform(dim, lower, upper).map_err(Error::Input)?;
         Ok(BoucWenFit {
             with_d0,
-            validate: validate.map(|v| data.like(v)),
-            recordings: (train.clone(), validate.cloned()),
-            train: data,
+            data,
             bounds,
         })
     }
@@ -336,27 +368,25 @@ impl Objective for BoucWenFit {
     }
 
     fn evaluate(&self, p: &[f64]) -> f64 {
-        crate::physics::bouc_wen::cost(&self.params(p), &self.train.u, &self.train.y)
+        let t = self.data.train();
+        crate::physics::bouc_wen::cost(&self.params(p), &t.u, &t.y)
     }
 
     fn presentation(&self) -> Option<Presentation> {
+        let t = self.data.train();
         Some(Presentation {
-            label: format!("train RMSE{}", self.train.unit_suffix()),
+            label: format!("train RMSE{}", t.unit_suffix()),
             kind: PresentationKind::RmseFromHalfSse {
-                samples: self.train.u.len(),
-                scale: self.train.y_scale,
+                samples: t.u.len(),
+                scale: t.y_scale,
             },
         })
     }
 
     fn metrics(&self, p: &[f64]) -> Vec<Metric> {
-        let unit = self.train.unit_suffix();
+        let unit = self.data.train().unit_suffix();
         let mut m = Vec::new();
-        let mut sets = vec![("train", &self.train)];
-        if let Some(v) = &self.validate {
-            sets.push(("validate", v));
-        }
-        for (set, d) in sets {
+        for (set, d) in self.data.sets() {
             let (max, rms) = errors(&d.y, &self.simulate(p, d), 0, d.y_scale);
             m.push(Metric::new(format!("{set} RMSE{unit}"), rms));
             m.push(Metric::new(format!("{set} max error{unit}"), max));
@@ -370,18 +400,13 @@ impl Objective for BoucWenFit {
 }
 
 impl FitView for BoucWenFit {
-    fn recordings(&self) -> (&Recording, Option<&Recording>) {
-        (&self.recordings.0, self.recordings.1.as_ref())
+    fn recordings(&self) -> Vec<(&str, &Recording)> {
+        self.data.recordings()
     }
 
-    fn outputs(&self, p: &[f64], validate: bool) -> Vec<(String, Vec<f64>)> {
-        let d = if validate {
-            match &self.validate {
-                Some(v) => v,
-                None => return Vec::new(),
-            }
-        } else {
-            &self.train
+    fn outputs(&self, p: &[f64], set: usize) -> Vec<(String, Vec<f64>)> {
+        let Some(d) = self.data.get(set) else {
+            return Vec::new();
         };
         let y = self
             .simulate(p, d)
@@ -394,10 +419,12 @@ impl FitView for BoucWenFit {
     /// d_e, alpha and d0 in the recording's units (output per input, output); beta, gamma
     /// and n as fitted (on normalised data they act on the normalised state).
     fn named_params(&self, p: &[f64]) -> Vec<(String, f64)> {
-        let scaled = self.train.u_scale != 1.0 || self.train.y_scale != 1.0;
+        let t = self.data.train();
+        let scaled = t.u_scale != 1.0 || t.y_scale != 1.0;
         let tag = if scaled { " (normalised)" } else { "" };
-        let (us, ys) = (self.train.u_scale, self.train.y_scale);
-        let (uu, yu) = (&self.recordings.0.units[1], &self.recordings.0.units[2]);
+        let (us, ys) = (t.u_scale, t.y_scale);
+        let train = &self.data.recordings[0].1;
+        let (uu, yu) = (&train.units[1], &train.units[2]);
         let ratio = if uu.is_empty() && yu.is_empty() {
             String::new()
         } else {
@@ -434,7 +461,7 @@ mod tests {
         let rec = eq318_recording(500);
         let fit = RbfFit::new(
             &rec,
-            Some(&rec),
+            &[("validate".into(), rec.clone())],
             RbfNet::new(3, 7),
             Narx::SEED,
             Mode::FreeRun,
@@ -475,14 +502,8 @@ mod tests {
     #[test]
     fn one_step_mode_has_the_gradient_of_its_cost() {
         let rec = eq318_recording(300);
-        let fit = RbfFit::new(
-            &rec,
-            None,
-            RbfNet::new(3, 7),
-            Narx::SEED,
-            Mode::OneStepAhead,
-        )
-        .unwrap();
+        let fit =
+            RbfFit::new(&rec, &[], RbfNet::new(3, 7), Narx::SEED, Mode::OneStepAhead).unwrap();
         assert!(fit.has_gradient());
         let mut rng = crate::harness::TrialSeed::from_u64(9).rng(0);
         let mut p = vec![0.0; 35];
@@ -490,7 +511,7 @@ mod tests {
         let mut g = vec![0.0; 35];
         let j = fit.value_and_gradient(&p, &mut g).unwrap();
         assert_eq!(j, fit.evaluate(&p));
-        let free = RbfFit::new(&rec, None, RbfNet::new(3, 7), Narx::SEED, Mode::FreeRun).unwrap();
+        let free = RbfFit::new(&rec, &[], RbfNet::new(3, 7), Narx::SEED, Mode::FreeRun).unwrap();
         assert!(!free.has_gradient());
     }
 }
