@@ -83,6 +83,9 @@ pub struct PaperTable {
     pub value: Option<String>,
     #[serde(default)]
     pub note: Option<String>,
+    /// Who the reference numbers are from (default "seed").
+    #[serde(default)]
+    pub reference: Option<String>,
     pub columns: Vec<String>,
     pub rows: Vec<PaperRow>,
 }
@@ -93,7 +96,7 @@ pub struct PaperTable {
 pub struct PaperRow {
     pub label: String,
     pub cells: Vec<String>,
-    /// The published numbers, one per column (nan where the paper has none).
+    /// The reference numbers, one per column (nan where there is none).
     #[serde(default)]
     pub seed: Vec<f64>,
 }

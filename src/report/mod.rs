@@ -127,7 +127,7 @@ pub fn generate(dir: &Path) -> Result<String> {
         .map_err(|e| Error::io(format!("creating {}", tables.display()), e))?;
     let mut md = String::new();
     if !run.suite.tables.is_empty() {
-        md += "## Tables laid out as in the seed\n\n";
+        md += "## Tables with reference numbers\n\n";
         for t in &run.suite.tables {
             let table = paper::paper_table_markdown(t, &a);
             md += &table;

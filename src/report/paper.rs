@@ -479,6 +479,7 @@ fn paper_cell(
 
 /// A suite's paper-layout table: our median [95 % CI] with the paper's number beside it.
 pub fn paper_table_markdown(t: &crate::suite::PaperTable, a: &Analysis) -> String {
+    let reference = t.reference.as_deref().unwrap_or("seed");
     let mut header = vec![String::new()];
     header.extend(t.columns.iter().cloned());
     let rows: Vec<Vec<String>> = t
@@ -495,7 +496,7 @@ pub fn paper_table_markdown(t: &crate::suite::PaperTable, a: &Analysis) -> Strin
                 };
                 let seed = row.seed.get(i).copied().filter(|v| v.is_finite());
                 r.push(match seed {
-                    Some(v) => format!("{ours} (seed {})", sig(v, 3)),
+                    Some(v) => format!("{ours} ({reference} {})", sig(v, 3)),
                     None => ours,
                 });
             }
@@ -528,8 +529,9 @@ pub fn paper_table_latex(t: &crate::suite::PaperTable, a: &Analysis) -> String {
     writeln!(s, "\\begin{{table}}[t]\n\\centering").unwrap();
     writeln!(
         s,
-        "\\caption{{{} Ours: median over trials (95\\,\\% bootstrap interval); the seed's single run in parentheses.}}",
-        latex_escape(&t.title)
+        "\\caption{{{} Ours: median over trials; {} in parentheses.}}",
+        latex_escape(&t.title),
+        latex_escape(t.reference.as_deref().unwrap_or("the seed's single run"))
     )
     .unwrap();
     writeln!(
