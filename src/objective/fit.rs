@@ -127,6 +127,19 @@ impl Datasets {
     }
 }
 
+/// Replaces non-finite model outputs by the last finite one (0 before any), so metrics and
+/// plots of absurd parameters stay finite; costs penalise such parameters on their own.
+fn hold_finite(out: &mut [f64]) {
+    let mut last = 0.0;
+    for v in out {
+        if v.is_finite() {
+            last = *v;
+        } else {
+            *v = last;
+        }
+    }
+}
+
 /// Max |e| and RMS of `model - measured` from `start`, in physical units.
 fn errors(meas: &[f64], model: &[f64], start: usize, scale: f64) -> (f64, f64) {
     let e = rbf::fit_errors(meas, model, start);
@@ -180,6 +193,7 @@ impl RbfFit {
     fn predict(&self, p: &[f64], d: &FitData, mode: Mode) -> Vec<f64> {
         let mut out = vec![0.0; d.u.len()];
         rbf::predict(&self.net, &self.narx, p, &d.u, &d.y, mode, &mut out);
+        hold_finite(&mut out);
         out
     }
 }
@@ -351,9 +365,9 @@ impl BoucWenFit {
         let mut out = vec![0.0; d.u.len()];
         let status = crate::physics::bouc_wen::simulate(&self.params(p), &d.u, &mut out);
         if let crate::physics::bouc_wen::SimStatus::Unstable { at } = status {
-            let last = if at > 0 { out[at - 1] } else { 0.0 };
-            out[at..].fill(last);
+            out[at..].fill(f64::NAN);
         }
+        hold_finite(&mut out);
         out
     }
 }
