@@ -795,7 +795,11 @@ pub fn simulate(cfg: &TwinConfig, u: &[f64], dt: f64, seed: u64) -> Vec<f64> {
     u.iter().map(|&x| twin.step(x)).collect()
 }
 
-/// A [`Recording`] of the twin driven by `u` (units s, V, mm); see [`simulate`].
+/// Seconds the twin holds the first command before a [`recording`] starts.
+pub const PRE_ROLL_S: f64 = 0.5;
+
+/// A [`Recording`] of the twin driven by `u` (units s, V, mm) after a pre-roll of
+/// [`PRE_ROLL_S`] at `u[0]`; see [`simulate`] for a run from rest.
 pub fn recording(
     cfg: &TwinConfig,
     name: impl Into<String>,
@@ -805,7 +809,15 @@ pub fn recording(
 ) -> Result<Recording> {
     let cfg = TwinConfig { dt, ..cfg.clone() };
     cfg.validate()?;
-    let y = simulate(&cfg, &u, dt, seed);
+    let mut twin = Twin::try_new(&cfg, seed)?;
+    // Pre-roll: the actuator sits at the first command before recording starts, as on a rig,
+    // so a signal that does not start at 0 V does not begin with a step through the mode.
+    if let Some(&u0) = u.first() {
+        for _ in 0..(PRE_ROLL_S / dt).round() as usize {
+            twin.step(u0);
+        }
+    }
+    let y: Vec<f64> = u.iter().map(|&x| twin.step(x)).collect();
     let mut r = Recording::uniform(name, dt, u, y)?;
     r.units = ["s".into(), "V".into(), "mm".into()];
     Ok(r)
