@@ -9,6 +9,7 @@ use crate::optimizer::OptimizerConfig;
 use crate::optimizer::ga::GaConfig;
 use crate::optimizer::gradient::GradientConfig;
 use crate::optimizer::msga::MsgaConfig;
+use crate::optimizer::nelder_mead::NelderMeadConfig;
 use crate::optimizer::operators::Mutation;
 use crate::optimizer::pso::PsoConfig;
 use crate::optimizer::random_search::RandomSearchConfig;
@@ -489,6 +490,22 @@ fn build_msga(p: &Params) -> Result<Arc<dyn OptimizerConfig>, Error> {
     }))
 }
 
+const NM_PARAMS: &[Spec] = &[Spec {
+    name: "step",
+    kind: Kind::Float {
+        min: f64::MIN_POSITIVE,
+        max: 1.0,
+    },
+    default: D::Float(0.05),
+    help: "initial simplex edge as a fraction of each interval's width",
+}];
+
+fn build_nm(p: &Params) -> Result<Arc<dyn OptimizerConfig>, Error> {
+    Ok(Arc::new(NelderMeadConfig {
+        step: p.float("step"),
+    }))
+}
+
 const RANDOM_PARAMS: &[Spec] = &[Spec {
     name: "batch",
     kind: POSITIVE_INT,
@@ -556,6 +573,12 @@ pub fn optimizer_kinds() -> Vec<OptimizerKind> {
             help: "back-propagation baseline: gradient descent with momentum (needs a gradient; one gradient = one evaluation)",
             params: BP_PARAMS,
             build: build_bp,
+        },
+        OptimizerKind {
+            name: "nelder-mead",
+            help: "Nelder-Mead simplex (adaptive coefficients), from a random start; also the local polish of `polish = share`",
+            params: NM_PARAMS,
+            build: build_nm,
         },
         OptimizerKind {
             name: "random",

@@ -20,6 +20,7 @@
 //! [[optimizer]]
 //! kind = "msga"
 //! id = "MSGA"             # optional name in results (default: the kind)
+//! polish = 0.1            # optional: Nelder-Mead polish of the best point, last 10 % of the budget
 //! objects = 40
 //! ```
 //!
@@ -324,6 +325,7 @@ impl Suite {
                 "optimizer",
             )?;
             let id = take_str(&mut fields, "id", path, text)?.unwrap_or_else(|| kind.name.into());
+            let polish = take_float(&mut fields, "polish", path, text)?;
             check_id(&id, &mut ids, path, line, "optimizer")?;
             let params = Params::validate(
                 kind.params,
@@ -334,7 +336,23 @@ impl Suite {
                     what: format!("optimizer `{id}`"),
                 },
             )?;
-            let config = (kind.build)(&params)?;
+            let mut config = (kind.build)(&params)?;
+            if let Some((share, line)) = polish {
+                if !(share > 0.0 && share < 1.0) {
+                    return Err(Error::at(
+                        path,
+                        line,
+                        format!(
+                            "optimizer `{id}`: `polish` = {share}: expected a budget share in (0, 1)"
+                        ),
+                    ));
+                }
+                config = Arc::new(crate::optimizer::nelder_mead::PolishedConfig {
+                    global: config,
+                    share,
+                    local: Default::default(),
+                });
+            }
             optimizers.push(OptimizerEntry {
                 id,
                 kind: kind.name,

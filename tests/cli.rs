@@ -172,7 +172,7 @@ fn unknown_names_list_the_valid_ones() {
         &[
             "bad.toml:8:",
             "unknown optimizer kind `cmaes`",
-            "ga, pso, msga, bp, random",
+            "ga, pso, msga, bp, nelder-mead, random",
         ],
     );
     rejects(
@@ -221,6 +221,13 @@ fn impossible_parameters_are_refused() {
     rejects(
         "name = \"bad\"\nseed = 1\ntrials = 0\nbudget = 100\n[[objective]]\nkind = \"sphere\"\ndim = 2\n[[optimizer]]\nkind = \"ga\"\n",
         &["bad.toml:3:", "`trials` = 0"],
+    );
+    rejects(
+        &format!("{HEAD}{obj}[[optimizer]]\nkind = \"pso\"\npolish = 1.5\n"),
+        &[
+            "bad.toml:10:",
+            "`polish` = 1.5: expected a budget share in (0, 1)",
+        ],
     );
     rejects(
         &format!("{HEAD}{obj}[[optimizer]]\nkind = \"ga\"\n[[optimizer]]\nkind = \"ga\"\n"),

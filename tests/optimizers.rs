@@ -190,3 +190,51 @@ fn bp_converges_on_smooth_functions_with_its_gradient() {
     );
     assert!(r.best < 1e-3, "rosenbrock: {}", r.best);
 }
+
+#[test]
+fn nelder_mead_reaches_known_accuracies() {
+    use optbench::optimizer::nelder_mead::NelderMeadConfig;
+    let cfg = NelderMeadConfig::default();
+    // Sphere-5: 1e-8 within 3000 evaluations; Rosenbrock-2: 1e-6 within 3000.
+    let r = trial(
+        Arc::new(Probe::new(TestFunction::Sphere, 5)),
+        &cfg,
+        3000,
+        None,
+        1,
+    );
+    assert!(r.best < 1e-8, "sphere: {}", r.best);
+    let r = trial(
+        Arc::new(Probe::new(TestFunction::Rosenbrock, 2)),
+        &cfg,
+        3000,
+        None,
+        1,
+    );
+    assert!(r.best < 1e-6, "rosenbrock: {}", r.best);
+}
+
+#[test]
+fn polish_refines_the_global_optimizers_best_point() {
+    use optbench::optimizer::nelder_mead::PolishedConfig;
+    // On 10-D sphere, PSO plus a 10 % Nelder-Mead polish ends far below PSO alone at the
+    // same budget, for every seed tried.
+    let pso: Arc<dyn OptimizerConfig> = default_optimizer("pso").unwrap();
+    let polished = PolishedConfig {
+        global: Arc::clone(&pso),
+        share: 0.1,
+        local: Default::default(),
+    };
+    for seed in 1..=3 {
+        let obj = || -> Arc<dyn Objective> { Arc::new(Probe::new(TestFunction::Sphere, 10)) };
+        let plain = trial(obj(), pso.as_ref(), 6000, None, seed);
+        let refined = trial(obj(), &polished, 6000, None, seed);
+        assert_eq!(refined.evaluations, 6000);
+        assert!(
+            refined.best < 0.01 * plain.best,
+            "seed {seed}: {} vs {}",
+            refined.best,
+            plain.best
+        );
+    }
+}

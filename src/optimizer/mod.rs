@@ -5,6 +5,7 @@
 pub mod ga;
 pub mod gradient;
 pub mod msga;
+pub mod nelder_mead;
 pub mod operators;
 pub mod pso;
 pub mod random_search;
