@@ -268,9 +268,16 @@ impl Suite {
             )?;
             let id = take_str(&mut fields, "id", path, text)?;
             let own_budget = take_int(&mut fields, "budget", path, text)?;
-            let own_targets = take_floats(&mut fields, "targets", path, text)?;
+            let own_targets = take_array(&mut fields, "targets", "numbers", as_float, path, text)?;
             let own_stop = take_float(&mut fields, "stop_at", path, text)?;
-            let only = take_strs(&mut fields, "optimizers", path, text)?;
+            let only = take_array(
+                &mut fields,
+                "optimizers",
+                "strings",
+                |x| x.as_str().map(String::from),
+                path,
+                text,
+            )?;
             let what = format!("objective `{}`", id.as_deref().unwrap_or(kind.name));
             let params = Params::validate(
                 kind.params,
@@ -620,29 +627,6 @@ fn take_str(fields: &mut RawEntry, key: &str, path: &Path, text: &str) -> Result
     }
 }
 
-fn take_strs(
-    fields: &mut RawEntry,
-    key: &str,
-    path: &Path,
-    text: &str,
-) -> Result<Option<(Vec<String>, usize)>> {
-    match fields.remove(key) {
-        None => Ok(None),
-        Some(v) => {
-            let line = line_of(text, v.span().start);
-            let err = || Error::at(path, line, format!("`{key}`: expected an array of strings"));
-            match v.get_ref() {
-                toml::Value::Array(a) => a
-                    .iter()
-                    .map(|x| x.as_str().map(String::from).ok_or_else(err))
-                    .collect::<Result<Vec<_>>>()
-                    .map(|x| Some((x, line))),
-                _ => Err(err()),
-            }
-        }
-    }
-}
-
 fn take_int(
     fields: &mut RawEntry,
     key: &str,
@@ -699,25 +683,27 @@ fn take_float(
     }
 }
 
-fn take_floats(
+/// Takes an optional array `key`, converting each element with `conv` (`what` names the
+/// element type in the message).
+fn take_array<T>(
     fields: &mut RawEntry,
     key: &str,
+    what: &str,
+    conv: fn(&toml::Value) -> Option<T>,
     path: &Path,
     text: &str,
-) -> Result<Option<(Vec<f64>, usize)>> {
-    match fields.remove(key) {
-        None => Ok(None),
-        Some(v) => {
-            let line = line_of(text, v.span().start);
-            let err = || Error::at(path, line, format!("`{key}`: expected an array of numbers"));
-            match v.get_ref() {
-                toml::Value::Array(a) => a
-                    .iter()
-                    .map(|x| as_float(x).ok_or_else(err))
-                    .collect::<Result<Vec<_>>>()
-                    .map(|x| Some((x, line))),
-                _ => Err(err()),
-            }
-        }
+) -> Result<Option<(Vec<T>, usize)>> {
+    let Some(v) = fields.remove(key) else {
+        return Ok(None);
+    };
+    let line = line_of(text, v.span().start);
+    let err = || Error::at(path, line, format!("`{key}`: expected an array of {what}"));
+    match v.get_ref() {
+        toml::Value::Array(a) => a
+            .iter()
+            .map(|x| conv(x).ok_or_else(err))
+            .collect::<Result<Vec<_>>>()
+            .map(|x| Some((x, line))),
+        _ => Err(err()),
     }
 }
