@@ -211,18 +211,13 @@ fn write_figures(dir: &Path, objective: &dyn Objective, record: &TrialRecord) ->
         .presentation()
         .map(|p| p.label)
         .unwrap_or_else(|| "cost".into());
-    let mut shown = record.clone();
-    if let Some(p) = objective.presentation() {
-        shown.best = p.apply(shown.best);
-        for v in shown
-            .improvements
-            .iter_mut()
-            .chain(shown.checkpoints.iter_mut())
-        {
-            v.1 = p.apply(v.1);
-        }
-    }
-    shown.optimum = None;
+    let shown = match objective.presentation() {
+        Some(p) => record.presented(&p),
+        None => TrialRecord {
+            optimum: None,
+            ..record.clone()
+        },
+    };
     plots::convergence(
         &dir.join("convergence"),
         &format!("{} by {}: convergence", record.objective, record.optimizer),

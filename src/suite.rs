@@ -407,9 +407,12 @@ impl Suite {
         }
 
         let mut tables = Vec::new();
+        // Metric names come from evaluating an objective's metrics (a simulation of each of
+        // its recordings), so each objective is asked once for all tables.
+        let mut metric_names = BTreeMap::new();
         for t in &raw.tables {
             let line = line_of(text, t.span().start);
-            check_table(t.get_ref(), &objectives, &optimizers)
+            check_table(t.get_ref(), &objectives, &optimizers, &mut metric_names)
                 .map_err(|m| Error::at(path, line, format!("table `{}`: {m}", t.get_ref().id)))?;
             tables.push(t.get_ref().clone());
         }
@@ -461,6 +464,7 @@ fn check_table(
     t: &PaperTable,
     objectives: &[ObjectiveEntry],
     optimizers: &[OptimizerEntry],
+    names: &mut BTreeMap<String, Vec<String>>,
 ) -> std::result::Result<(), String> {
     let n = t.columns.len();
     for row in &t.rows {
@@ -496,19 +500,20 @@ fn check_table(
                 ));
             }
             if let Some(m) = r.metric.as_ref().or(t.value.as_ref()) {
-                let b = obj.objective.bounds();
-                let mid: Vec<f64> = b
-                    .lower()
-                    .iter()
-                    .zip(b.upper())
-                    .map(|(l, u)| 0.5 * (l + u))
-                    .collect();
-                let names: Vec<String> = obj
-                    .objective
-                    .metrics(&mid)
-                    .into_iter()
-                    .map(|m| m.name)
-                    .collect();
+                let names = names.entry(obj.id.clone()).or_insert_with(|| {
+                    let b = obj.objective.bounds();
+                    let mid: Vec<f64> = b
+                        .lower()
+                        .iter()
+                        .zip(b.upper())
+                        .map(|(l, u)| 0.5 * (l + u))
+                        .collect();
+                    obj.objective
+                        .metrics(&mid)
+                        .into_iter()
+                        .map(|m| m.name)
+                        .collect()
+                });
                 if !names.contains(m) {
                     return Err(format!(
                         "cell `{c}`: objective `{}` reports no metric `{m}`; it reports: {}",

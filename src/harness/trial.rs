@@ -52,9 +52,16 @@ fn f64_or_inf<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
 }
 
 impl TrialRecord {
-    /// Distance of the final value to the known optimum, or the value itself.
-    pub fn error(&self) -> f64 {
-        self.best - self.optimum.unwrap_or(0.0)
+    /// This record with every value mapped by `p` (e.g. a fitting cost shown as an RMSE);
+    /// the optimum is then unknown in the new units.
+    pub fn presented(&self, p: &crate::objective::Presentation) -> TrialRecord {
+        let mut r = self.clone();
+        r.best = p.apply(r.best);
+        r.optimum = None;
+        for v in r.improvements.iter_mut().chain(r.checkpoints.iter_mut()) {
+            v.1 = p.apply(v.1);
+        }
+        r
     }
 }
 

@@ -47,6 +47,8 @@ impl OptimizerConfig for GaConfig {
             next: Vec::new(),
             next_fit: Vec::new(),
             wheel: Roulette::default(),
+            c1: vec![0.0; bounds.dim()],
+            c2: vec![0.0; bounds.dim()],
         })
     }
 }
@@ -60,6 +62,9 @@ struct Ga {
     next: Vec<f64>,
     next_fit: Vec<f64>,
     wheel: Roulette,
+    /// Crossover children, reused across generations.
+    c1: Vec<f64>,
+    c2: Vec<f64>,
 }
 
 impl Optimizer for Ga {
@@ -83,26 +88,26 @@ impl Optimizer for Ga {
             self.next.extend_from_slice(&self.pop[i * d..(i + 1) * d]);
             self.next_fit.push(self.fit[i]);
         }
-        let (mut c1, mut c2) = (vec![0.0; d], vec![0.0; d]);
+        let (c1, c2) = (&mut self.c1, &mut self.c2);
         while self.next.len() < n * d {
             let a = self.wheel.pick(&mut self.rng);
             let b = self.wheel.pick(&mut self.rng);
             let (pa, pb) = (&self.pop[a * d..(a + 1) * d], &self.pop[b * d..(b + 1) * d]);
             if self.rng.random::<f64>() < self.cfg.pc {
                 let alpha: f64 = self.rng.random();
-                arithmetic_crossover(alpha, pa, pb, &mut c1, &mut c2);
+                arithmetic_crossover(alpha, pa, pb, c1, c2);
             } else {
                 c1.copy_from_slice(pa);
                 c2.copy_from_slice(pb);
             }
-            for c in [&mut c1, &mut c2] {
+            for c in [&mut *c1, &mut *c2] {
                 self.cfg
                     .mutation
                     .apply(c, &self.bounds, self.cfg.pm, &mut self.rng);
             }
-            self.next.extend_from_slice(&c1);
+            self.next.extend_from_slice(c1);
             if self.next.len() < n * d {
-                self.next.extend_from_slice(&c2);
+                self.next.extend_from_slice(c2);
             }
         }
         let e = self.cfg.elite;

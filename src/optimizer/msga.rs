@@ -142,6 +142,9 @@ struct Membrane {
     cand: Vec<f64>,
     wheel: Roulette,
     initialized: bool,
+    /// Crossover children, reused across rounds.
+    c1: Vec<f64>,
+    c2: Vec<f64>,
 }
 
 impl Membrane {
@@ -160,6 +163,8 @@ impl Membrane {
             cand: vec![0.0; cfg.objects * d],
             wheel: Roulette::default(),
             initialized: false,
+            c1: vec![0.0; d],
+            c2: vec![0.0; d],
         }
     }
 
@@ -179,14 +184,14 @@ impl Membrane {
             self.cand[i * d..(i + 1) * d].copy_from_slice(&self.pop[p * d..(p + 1) * d]);
         }
         // Crossover of consecutive pairs.
-        let (mut c1, mut c2) = (vec![0.0; d], vec![0.0; d]);
+        let (c1, c2) = (&mut self.c1, &mut self.c2);
         for pair in self.cand.chunks_exact_mut(2 * d) {
             if self.rng.random::<f64>() < self.pc {
                 let a: f64 = self.rng.random();
                 let (p1, p2) = pair.split_at(d);
-                arithmetic_crossover(a, p1, p2, &mut c1, &mut c2);
-                pair[..d].copy_from_slice(&c1);
-                pair[d..].copy_from_slice(&c2);
+                arithmetic_crossover(a, p1, p2, c1, c2);
+                pair[..d].copy_from_slice(c1);
+                pair[d..].copy_from_slice(c2);
             }
         }
         for x in self.cand.chunks_exact_mut(d) {

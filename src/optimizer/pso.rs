@@ -44,7 +44,11 @@ impl OptimizerConfig for PsoConfig {
     fn start(&self, bounds: &Bounds, budget: u64, seed: &TrialSeed) -> Box<dyn Optimizer> {
         // Iterations after the initial evaluation, for the inertia schedule.
         let iterations = (budget.saturating_sub(self.swarm as u64)).div_ceil(self.swarm as u64);
+        let vmax = (0..bounds.dim())
+            .map(|j| self.vmax * bounds.width(j))
+            .collect();
         Box::new(Pso {
+            vmax,
             cfg: self.clone(),
             bounds: bounds.clone(),
             rng: seed.rng(0),
@@ -74,6 +78,8 @@ struct Pso {
     pbest_f: Vec<f64>,
     gbest: Vec<f64>,
     gbest_f: f64,
+    /// Velocity clamp per dimension (`vmax` times the interval width).
+    vmax: Vec<f64>,
 }
 
 impl Pso {
@@ -96,16 +102,14 @@ impl Optimizer for Pso {
     fn step(&mut self, ev: &mut Evaluator) {
         let d = self.bounds.dim();
         let n = self.cfg.swarm;
-        let vmax: Vec<f64> = (0..d)
-            .map(|j| self.cfg.vmax * self.bounds.width(j))
-            .collect();
+        let vmax = &self.vmax;
         if self.x.is_empty() {
             self.x = vec![0.0; n * d];
             self.v = vec![0.0; n * d];
             for i in 0..n {
                 self.bounds
                     .sample(&mut self.rng, &mut self.x[i * d..(i + 1) * d]);
-                for (v, vm) in self.v[i * d..(i + 1) * d].iter_mut().zip(&vmax) {
+                for (v, vm) in self.v[i * d..(i + 1) * d].iter_mut().zip(vmax) {
                     *v = (2.0 * self.rng.random::<f64>() - 1.0) * vm;
                 }
             }

@@ -41,17 +41,6 @@ pub struct StoredRun {
     pub metrics: analysis::TrialMetrics,
 }
 
-/// `r` with its values mapped by `p`.
-fn present(r: &TrialRecord, p: &crate::objective::Presentation) -> TrialRecord {
-    let mut r = r.clone();
-    r.best = p.apply(r.best);
-    r.optimum = None;
-    for v in r.improvements.iter_mut().chain(r.checkpoints.iter_mut()) {
-        v.1 = p.apply(v.1);
-    }
-    r
-}
-
 impl StoredRun {
     /// Reads `dir` as written by `optbench run`.
     pub fn load(dir: &Path) -> Result<StoredRun> {
@@ -75,7 +64,7 @@ impl StoredRun {
                 )));
             };
             presented.push(match obj.objective.presentation() {
-                Some(p) => present(r, &p),
+                Some(p) => r.presented(&p),
                 None => r.clone(),
             });
             let m = obj.objective.metrics(&r.best_x);
