@@ -263,11 +263,11 @@ pub fn list() -> String {
                 s.push('\n');
             }
         };
-    s.push_str("OBJECTIVES ([[objective]] kind = ...; also id, budget, targets, stop_at)\n\n");
+    s.push_str("OBJECTIVES ([[objective]] kind = ...; also id, budget, targets, stop_at, optimizers)\n\n");
     for k in objective_kinds() {
         section(&mut s, "objective", k.name, k.help, k.params);
     }
-    s.push_str("OPTIMIZERS ([[optimizer]] kind = ...; also id)\n\n");
+    s.push_str("OPTIMIZERS ([[optimizer]] kind = ...; also id, polish)\n\n");
     for k in optimizer_kinds() {
         section(&mut s, "optimizer", k.name, k.help, k.params);
     }
