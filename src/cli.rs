@@ -263,7 +263,9 @@ pub fn list() -> String {
                 s.push('\n');
             }
         };
-    s.push_str("OBJECTIVES ([[objective]] kind = ...; also id, budget, targets, stop_at, optimizers)\n\n");
+    s.push_str(
+        "OBJECTIVES ([[objective]] kind = ...; also id, budget, targets, stop_at, optimizers)\n\n",
+    );
     for k in objective_kinds() {
         section(&mut s, "objective", k.name, k.help, k.params);
     }
