@@ -1,14 +1,23 @@
-//! Samples per second of the physics models on a fitting-sized record (1000 samples of a
-//! 10 Hz sine on the twin's command scale): the Bouc-Wen cost for n = 1 (closed form) and
-//! n = 1.3 (series + RK4), and the 3-7-1 RBF network's one-step and free-run costs. This is
-//! the per-individual baseline that batched population paths are measured against.
+//! Samples per second of the physics models' fitting costs over a population, as a fitting
+//! objective evaluates them: 200 individuals on a 10,000-sample record (a 10 Hz sine on the
+//! twin's command scale). Each model runs its per-individual loop (the baseline) and its
+//! batched path; after the run the ratios between them are printed (`cargo bench --bench
+//! models`).
+//!
+//! Samples/s = individuals × samples / time (criterion's "elem/s").
 
-use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{BenchmarkId, Criterion, Throughput};
 use optbench::physics::bouc_wen::{self, BoucWenParams};
+use optbench::physics::bouc_wen_fast::{self, FastInput};
 use optbench::physics::rbf::{self, Mode, Narx, RbfNet, Regressors};
+use optbench::physics::rbf_fast::RbfBatch;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use std::hint::black_box;
 
-const N: usize = 1000;
+const N: usize = 10_000;
+const POP: usize = 200;
 
 fn record() -> (Vec<f64>, Vec<f64>) {
     let u: Vec<f64> = (0..N)
@@ -27,36 +36,166 @@ fn record() -> (Vec<f64>, Vec<f64>) {
     (u, y)
 }
 
-fn models(c: &mut Criterion) {
-    let (u, y) = record();
-    let mut g = c.benchmark_group("model_cost_1000_samples");
-    g.throughput(Throughput::Elements(N as u64));
-    for n in [1.0, 1.3] {
-        let p = BoucWenParams {
-            d_e: 0.15,
-            alpha: 0.05,
-            beta: 0.5,
-            gamma: 0.2,
-            n,
+/// A population around the truth (each parameter within ±50 %), as in mid-search.
+fn population() -> Vec<BoucWenParams> {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let mut f = |x: f64| x * rng.random_range(0.5..1.5);
+    (0..POP)
+        .map(|_| BoucWenParams {
+            d_e: f(0.1545),
+            alpha: f(0.045),
+            beta: f(0.45),
+            gamma: f(0.225),
+            n: f(1.0),
             d0: 0.0,
-        };
-        g.bench_with_input(BenchmarkId::new("bouc-wen", n), &p, |b, p| {
-            b.iter(|| bouc_wen::cost(black_box(p), &u, &y))
-        });
-    }
-    let net = RbfNet::SEED;
-    let narx = Narx::SEED;
-    let regs = Regressors::new(&narx, &u, &y);
-    let (lo, hi) = regs.input_ranges();
-    let p = rbf::init_params(&net, &lo, &hi);
-    g.bench_function("rbf-3-7-1/one-step", |b| {
-        b.iter(|| regs.cost(&net, black_box(&p)))
+        })
+        .collect()
+}
+
+fn bouc_wen_costs(c: &mut Criterion) {
+    let (u, y) = record();
+    let pop = population();
+    let input = FastInput::new(&u, &y, 1);
+    let mut out = vec![0.0; POP];
+    let mut g = c.benchmark_group("bouc_wen_pop200_10k");
+    g.throughput(Throughput::Elements((POP * N) as u64));
+    g.sample_size(10);
+    g.bench_function("accurate-per-individual", |b| {
+        b.iter(|| {
+            for (p, o) in pop.iter().zip(out.iter_mut()) {
+                *o = bouc_wen::cost(p, &u, &y);
+            }
+            black_box(&out);
+        })
     });
-    g.bench_function("rbf-3-7-1/free-run", |b| {
-        b.iter(|| rbf::cost(&net, &narx, black_box(&p), &u, &y, Mode::FreeRun))
+    g.bench_function("fast-scalar-reference", |b| {
+        b.iter(|| {
+            for (p, o) in pop.iter().zip(out.iter_mut()) {
+                *o = bouc_wen_fast::cost_reference(p, &input);
+            }
+            black_box(&out);
+        })
+    });
+    g.bench_function("fast-batched-portable", |b| {
+        b.iter(|| bouc_wen_fast::costs_portable(black_box(&pop), &input, &mut out))
+    });
+    g.bench_function("fast-batched", |b| {
+        b.iter(|| bouc_wen_fast::costs(black_box(&pop), &input, &mut out))
+    });
+    g.bench_function("fast-batched-all-threads", |b| {
+        b.iter(|| {
+            pop.par_chunks(bouc_wen_fast::LANES)
+                .zip(out.par_chunks_mut(bouc_wen_fast::LANES))
+                .for_each(|(p, o)| bouc_wen_fast::costs(p, &input, o))
+        })
     });
     g.finish();
 }
 
-criterion_group!(benches, models);
-criterion_main!(benches);
+fn rbf_costs(c: &mut Criterion) {
+    let (u, y) = record();
+    let (net, narx) = (RbfNet::SEED, Narx::SEED);
+    let regs = Regressors::new(&narx, &u, &y);
+    let (lo, hi) = regs.input_ranges();
+    let base = rbf::init_params(&net, &lo, &hi);
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    let d = net.n_params();
+    let pop: Vec<f64> = (0..POP * d)
+        .map(|q| base[q % d] * rng.random_range(0.8..1.2))
+        .collect();
+    let batch = RbfBatch::new(net, narx, &u, &y);
+    let mut out = vec![0.0; POP];
+    let mut g = c.benchmark_group("rbf_3_7_1_pop200_10k");
+    g.throughput(Throughput::Elements((POP * N) as u64));
+    g.sample_size(10);
+    for (mode, tag) in [
+        (Mode::OneStepAhead, "one-step"),
+        (Mode::FreeRun, "free-run"),
+    ] {
+        g.bench_function(BenchmarkId::new("per-individual", tag), |b| {
+            b.iter(|| {
+                for (p, o) in pop.chunks_exact(d).zip(out.iter_mut()) {
+                    *o = match mode {
+                        Mode::OneStepAhead => regs.cost(&net, p),
+                        Mode::FreeRun => rbf::cost(&net, &narx, p, &u, &y, mode),
+                    };
+                }
+                black_box(&out);
+            })
+        });
+        g.bench_function(BenchmarkId::new("batched", tag), |b| {
+            b.iter(|| batch.costs(black_box(&pop), mode, &mut out))
+        });
+    }
+    g.finish();
+}
+
+/// Mean time of a finished benchmark from criterion's estimates, in nanoseconds.
+fn mean_ns(group: &str, id: &str) -> Option<f64> {
+    let target = std::env::var("CARGO_TARGET_DIR").unwrap_or_else(|_| "target".into());
+    let path = format!("{target}/criterion/{group}/{id}/new/estimates.json");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).ok()?).ok()?;
+    v["mean"]["point_estimate"].as_f64()
+}
+
+fn print_ratios() {
+    let group = "bouc_wen_pop200_10k";
+    let samples = (POP * N) as f64;
+    let ids = [
+        "accurate-per-individual",
+        "fast-scalar-reference",
+        "fast-batched-portable",
+        "fast-batched",
+        "fast-batched-all-threads",
+    ];
+    let t: Vec<Option<f64>> = ids.iter().map(|id| mean_ns(group, id)).collect();
+    println!("\nBouc-Wen cost, {POP} individuals x {N} samples (this run):");
+    for (id, t) in ids.iter().zip(&t) {
+        if let Some(t) = t {
+            println!("  {id:<26} {:>8.1} M samples/s", samples / t * 1e3);
+        }
+    }
+    let threads = rayon::current_num_threads() as f64;
+    if let (Some(acc), Some(reference), Some(port), Some(fast), Some(all)) =
+        (t[0], t[1], t[2], t[3], t[4])
+    {
+        println!("  batched / accurate per-individual = {:.1}x", acc / fast);
+        println!(
+            "  batched / fast scalar reference   = {:.1}x",
+            reference / fast
+        );
+        println!("  batched / batched portable        = {:.1}x", port / fast);
+        println!(
+            "  all {threads} threads / one thread       = {:.2}x ({:.1} M samples/s per core)",
+            fast / all,
+            samples / all * 1e3 / threads
+        );
+    }
+}
+
+fn print_rbf_ratios() {
+    let group = "rbf_3_7_1_pop200_10k";
+    let samples = (POP * N) as f64;
+    println!("\nRBF 3-7-1 cost, {POP} individuals x {N} samples (this run):");
+    for tag in ["one-step", "free-run"] {
+        let one = mean_ns(group, &format!("per-individual/{tag}"));
+        let all = mean_ns(group, &format!("batched/{tag}"));
+        if let (Some(one), Some(all)) = (one, all) {
+            println!(
+                "  {tag:<9} per-individual {:>6.1} M samples/s, batched {:>6.1} M samples/s: batched / per-individual = {:.1}x",
+                samples / one * 1e3,
+                samples / all * 1e3,
+                one / all
+            );
+        }
+    }
+}
+
+fn main() {
+    let mut c = Criterion::default().configure_from_args();
+    bouc_wen_costs(&mut c);
+    rbf_costs(&mut c);
+    c.final_summary();
+    print_ratios();
+    print_rbf_ratios();
+}

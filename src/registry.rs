@@ -1,7 +1,7 @@
 //! The objective and optimizer kinds a suite may name, with their parameter tables.
 
 use crate::error::Error;
-use crate::objective::fit::{BoucWenFit, RbfFit};
+use crate::objective::fit::{BoucWenFit, BoucWenScheme, RbfFit};
 use crate::objective::functions::{Function, TestFunction};
 use crate::objective::source::{SimOptions, Source};
 use crate::objective::{Bounds, Objective};
@@ -288,6 +288,18 @@ const BOUC_WEN_PARAMS: &[Spec] = recording_params![
         default: D::Float(1.5),
         help: "upper bound of every (normalised) parameter (seed: 1.5)",
     },
+    Spec {
+        name: "scheme",
+        kind: Kind::Choice(&["fast", "accurate"]),
+        default: D::Str("fast"),
+        help: "integration: fast = fixed-cost exponential steps batched over the population (errors far below a fit's residual); accurate = the twin's adaptive kernel, one individual at a time",
+    },
+    Spec {
+        name: "substeps",
+        kind: Kind::Int { min: 0, max: 64 },
+        default: D::Int(0),
+        help: "fast scheme's sub-steps per sample (0: ceil(24 max|du|/range(u)), 1 to 8)",
+    },
 ];
 
 fn build_bouc_wen(p: &Params) -> Result<Arc<dyn Objective>, Error> {
@@ -300,7 +312,13 @@ fn build_bouc_wen(p: &Params) -> Result<Arc<dyn Objective>, Error> {
         p.float("lower"),
         p.float("upper"),
     )
-    .map_err(|e| p.error("lower", e))?;
+    .map_err(|e| p.error("lower", e))?
+    .with_scheme(match p.str("scheme") {
+        "accurate" => BoucWenScheme::Accurate,
+        _ => BoucWenScheme::Fast {
+            substeps: p.int("substeps") as usize,
+        },
+    });
     Ok(Arc::new(fit))
 }
 

@@ -11,6 +11,9 @@
 //!   drive amplifier and a sensor.
 
 pub mod bouc_wen;
+pub mod bouc_wen_fast;
+pub mod fastmath;
 pub mod linear;
 pub mod rbf;
+pub mod rbf_fast;
 pub mod twin;

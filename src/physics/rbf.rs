@@ -173,7 +173,7 @@ fn width2(b: f64) -> f64 {
 /// `-1 / (2 b²)`: `h = exp(exponent_factor(b) · d²)`. Every evaluation path uses this same
 /// expression, so they agree to the last bit.
 #[inline(always)]
-fn exponent_factor(b: f64) -> f64 {
+pub(crate) fn exponent_factor(b: f64) -> f64 {
     -0.5 / width2(b)
 }
 
@@ -270,7 +270,7 @@ fn min_max(v: &[f64]) -> (f64, f64) {
 
 /// The error cap for measured outputs `y`: [`CAP_FACTOR`] × [`output_scale`], at most 1e100
 /// so that sums of squared caps stay finite.
-fn error_cap(y: &[f64]) -> f64 {
+pub(crate) fn error_cap(y: &[f64]) -> f64 {
     let (lo, hi) = min_max(y);
     (CAP_FACTOR * output_scale(lo, hi)).min(1e100)
 }
