@@ -31,6 +31,19 @@ pub enum Command {
     Simulate(SimulateArgs),
     /// List objectives and optimizers with their parameters and defaults.
     List,
+    /// Measure evaluation speed on this machine: scalar, batched and all-thread paths of
+    /// every objective kind, harness overhead, MSGA threads.
+    Bench(BenchArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// A few seconds instead of about a minute (smaller records and populations).
+    #[arg(long)]
+    pub quick: bool,
+    /// Threads for the all-thread figures (default: one per core).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub threads: Option<u32>,
 }
 
 #[derive(clap::Args, Debug)]
@@ -185,6 +198,23 @@ fn dispatch(cli: Cli) -> Result<()> {
         }
         Command::List => {
             print!("{}", list());
+            Ok(())
+        }
+        Command::Bench(a) => {
+            let cfg = if a.quick {
+                crate::speed::BenchConfig::quick()
+            } else {
+                crate::speed::BenchConfig::full()
+            };
+            let report = match a.threads {
+                Some(t) => rayon::ThreadPoolBuilder::new()
+                    .num_threads(t as usize)
+                    .build()
+                    .map_err(|e| Error::Input(format!("thread pool: {e}")))?
+                    .install(|| crate::speed::run(&cfg)),
+                None => crate::speed::run(&cfg),
+            };
+            print!("{}", report.render());
             Ok(())
         }
     }

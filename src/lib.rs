@@ -27,6 +27,7 @@ pub mod results;
 pub mod runner;
 pub mod signal;
 pub mod simulate;
+pub mod speed;
 pub mod stats;
 pub mod suite;
 

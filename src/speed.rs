@@ -1,0 +1,416 @@
+//! `optbench bench`: evaluation speed measured in one process, as ratios against baselines
+//! run alongside, so that a user sees what this machine gives before planning a suite.
+//!
+//! Every figure is the median of several timed repetitions (wall clock, after one warm-up).
+//! Per-core rates divide by the threads used. The fixtures are shared with the criterion
+//! benches (`benches/models.rs`), which give the detailed view.
+
+use crate::harness::{Evaluator, TrialSeed, TrialSpec, run_trial};
+use crate::objective::fit::BoucWenFit;
+use crate::objective::functions::{Function, TestFunction};
+use crate::objective::{Bounds, Objective};
+use crate::optimizer::msga::MsgaConfig;
+use crate::physics::bouc_wen::{self, BoucWenParams};
+use crate::physics::bouc_wen_fast::{self, FastInput};
+use crate::physics::rbf::{self, Mode, Narx, RbfNet, Regressors};
+use crate::physics::rbf_fast::RbfBatch;
+use crate::recording::Recording;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Test fixtures: a fitting-sized record and populations around its truth.
+pub mod fixtures {
+    use super::*;
+
+    /// The Bouc-Wen parameters of [`record`] (the twin's hysteresis on the command scale).
+    pub const TRUTH: BoucWenParams = BoucWenParams {
+        d_e: 0.1545,
+        alpha: 0.045,
+        beta: 0.45,
+        gamma: 0.225,
+        n: 1.0,
+        d0: 0.0,
+    };
+
+    /// `n` samples of a 10 Hz sine on the twin's command scale (1 ms) and the Bouc-Wen
+    /// output of [`TRUTH`].
+    pub fn record(n: usize) -> (Vec<f64>, Vec<f64>) {
+        let u: Vec<f64> = (0..n)
+            .map(|k| 2.35 + 2.3 * (2.0 * std::f64::consts::PI * 10.0 * k as f64 * 1e-3).sin())
+            .collect();
+        let mut y = vec![0.0; n];
+        bouc_wen::simulate(&TRUTH, &u, &mut y);
+        (u, y)
+    }
+
+    /// `k` parameter sets, each within ±50 % of [`TRUTH`] (as in mid-search).
+    pub fn bouc_wen_population(k: usize, seed: u64) -> Vec<BoucWenParams> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut f = |x: f64| x * rng.random_range(0.5..1.5);
+        (0..k)
+            .map(|_| BoucWenParams {
+                d_e: f(TRUTH.d_e),
+                alpha: f(TRUTH.alpha),
+                beta: f(TRUTH.beta),
+                gamma: f(TRUTH.gamma),
+                n: f(TRUTH.n),
+                d0: 0.0,
+            })
+            .collect()
+    }
+
+    /// `k` row-major parameter vectors of the seed's 3-7-1 network on `(u, y)`, each entry
+    /// within ±20 % of the usual initialisation.
+    pub fn rbf_population(u: &[f64], y: &[f64], k: usize, seed: u64) -> Vec<f64> {
+        let (net, narx) = (RbfNet::SEED, Narx::SEED);
+        let regs = Regressors::new(&narx, u, y);
+        let (lo, hi) = regs.input_ranges();
+        let base = rbf::init_params(&net, &lo, &hi);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let d = net.n_params();
+        (0..k * d)
+            .map(|q| base[q % d] * rng.random_range(0.8..1.2))
+            .collect()
+    }
+}
+
+/// Sizes of a run.
+#[derive(Clone, Copy, Debug)]
+pub struct BenchConfig {
+    /// Samples per record.
+    pub samples: usize,
+    /// Individuals per population.
+    pub population: usize,
+    /// Timed repetitions per figure (median reported).
+    pub repeats: usize,
+    /// Evaluations of the harness-overhead and MSGA measurements.
+    pub evaluations: u64,
+}
+
+impl BenchConfig {
+    /// The full run (about a minute on 2 cores): 10,000 samples x 200 individuals.
+    pub fn full() -> Self {
+        BenchConfig {
+            samples: 10_000,
+            population: 200,
+            repeats: 5,
+            evaluations: 200_000,
+        }
+    }
+
+    /// A few seconds: 2,000 samples x 64 individuals.
+    pub fn quick() -> Self {
+        BenchConfig {
+            samples: 2_000,
+            population: 64,
+            repeats: 3,
+            evaluations: 40_000,
+        }
+    }
+}
+
+/// Median wall time in seconds of `repeats` runs of `f` (after one warm-up run).
+fn time(repeats: usize, mut f: impl FnMut()) -> f64 {
+    f();
+    let mut t: Vec<f64> = (0..repeats.max(1))
+        .map(|_| {
+            let s = Instant::now();
+            f();
+            s.elapsed().as_secs_f64()
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
+}
+
+/// One line of the table: a rate for the baseline, the batched path and the batched path on
+/// every thread.
+#[derive(Clone, Debug)]
+pub struct Row {
+    pub name: String,
+    pub unit: &'static str,
+    /// Work items (samples or evaluations) per timed run.
+    pub work: f64,
+    pub scalar_s: f64,
+    pub batched_s: f64,
+    pub threads_s: f64,
+    pub threads: usize,
+}
+
+impl Row {
+    fn rate(&self, s: f64, threads: usize) -> f64 {
+        self.work / s / 1e6 / threads as f64
+    }
+
+    /// Batched over scalar.
+    pub fn speedup(&self) -> f64 {
+        self.scalar_s / self.batched_s
+    }
+}
+
+/// The whole measurement.
+#[derive(Clone, Debug)]
+pub struct BenchReport {
+    pub rows: Vec<Row>,
+    /// Evaluator over a bare loop on Griewank-30, minus one (0.03 = 3 % overhead).
+    pub harness_overhead: f64,
+    /// MSGA on its 5 membrane threads against the same MSGA in one thread (Bouc-Wen fit).
+    pub msga_threads_speedup: f64,
+    pub accelerated: bool,
+    pub threads: usize,
+}
+
+/// Runs every measurement.
+pub fn run(cfg: &BenchConfig) -> BenchReport {
+    let threads = rayon::current_num_threads();
+    let mut rows = Vec::new();
+    let (u, y) = fixtures::record(cfg.samples);
+    let samples = (cfg.samples * cfg.population) as f64;
+
+    // Bouc-Wen fitting cost.
+    let pop = fixtures::bouc_wen_population(cfg.population, 7);
+    let input = FastInput::new(&u, &y, 1);
+    let mut out = vec![0.0; pop.len()];
+    let lanes = bouc_wen_fast::LANES;
+    rows.push(Row {
+        name: "bouc-wen".into(),
+        unit: "M samples/s",
+        work: samples,
+        scalar_s: time(cfg.repeats, || {
+            for (p, o) in pop.iter().zip(out.iter_mut()) {
+                *o = bouc_wen_fast::cost_reference(p, &input);
+            }
+        }),
+        batched_s: time(cfg.repeats, || bouc_wen_fast::costs(&pop, &input, &mut out)),
+        threads_s: time(cfg.repeats, || {
+            pop.par_chunks(lanes)
+                .zip(out.par_chunks_mut(lanes))
+                .for_each(|(p, o)| bouc_wen_fast::costs(p, &input, o))
+        }),
+        threads,
+    });
+    let accurate_s = time(cfg.repeats.min(3), || {
+        for (p, o) in pop.iter().zip(out.iter_mut()) {
+            *o = bouc_wen::cost(p, &u, &y);
+        }
+    });
+    rows.push(Row {
+        name: "bouc-wen (accurate kernel)".into(),
+        unit: "M samples/s",
+        work: samples,
+        scalar_s: accurate_s,
+        batched_s: accurate_s,
+        threads_s: time(cfg.repeats.min(3), || {
+            pop.par_iter()
+                .zip(out.par_iter_mut())
+                .for_each(|(p, o)| *o = bouc_wen::cost(p, &u, &y))
+        }),
+        threads,
+    });
+
+    // RBF network, both modes.
+    let (net, narx) = (RbfNet::SEED, Narx::SEED);
+    let d = net.n_params();
+    let rpop = fixtures::rbf_population(&u, &y, cfg.population, 8);
+    let regs = Regressors::new(&narx, &u, &y);
+    let batch = RbfBatch::new(net, narx, &u, &y);
+    for (mode, tag) in [
+        (Mode::OneStepAhead, "one-step"),
+        (Mode::FreeRun, "free-run"),
+    ] {
+        let rblock = d * 8;
+        rows.push(Row {
+            name: format!("rbf 3-7-1 {tag}"),
+            unit: "M samples/s",
+            work: samples,
+            scalar_s: time(cfg.repeats, || {
+                for (p, o) in rpop.chunks_exact(d).zip(out.iter_mut()) {
+                    *o = match mode {
+                        Mode::OneStepAhead => regs.cost(&net, p),
+                        Mode::FreeRun => rbf::cost(&net, &narx, p, &u, &y, mode),
+                    };
+                }
+            }),
+            batched_s: time(cfg.repeats, || batch.costs(&rpop, mode, &mut out)),
+            threads_s: time(cfg.repeats, || {
+                rpop.par_chunks(rblock)
+                    .zip(out.par_chunks_mut(8))
+                    .for_each(|(p, o)| batch.costs(p, mode, o))
+            }),
+            threads,
+        });
+    }
+
+    // Test functions: evaluations/s.
+    let points = cfg.population * 50;
+    for kind in [TestFunction::Griewank, TestFunction::Schwefel] {
+        let dim = 30;
+        let f = function(kind, dim);
+        let xs = sample_points(f.bounds(), points, 9);
+        let mut vals = vec![0.0; points];
+        rows.push(Row {
+            name: format!("{}-30", kind.name()),
+            unit: "M evals/s",
+            work: points as f64,
+            scalar_s: time(cfg.repeats, || {
+                for (x, v) in xs.chunks_exact(dim).zip(vals.iter_mut()) {
+                    *v = f.evaluate(x);
+                }
+            }),
+            batched_s: time(cfg.repeats, || f.evaluate_batch(&xs, &mut vals)),
+            threads_s: time(cfg.repeats, || {
+                xs.par_chunks(dim * 200)
+                    .zip(vals.par_chunks_mut(200))
+                    .for_each(|(x, v)| f.evaluate_batch(x, v))
+            }),
+            threads,
+        });
+    }
+
+    BenchReport {
+        rows,
+        harness_overhead: harness_overhead(cfg),
+        msga_threads_speedup: msga_threads(cfg),
+        accelerated: bouc_wen_fast::accelerated(),
+        threads,
+    }
+}
+
+fn function(kind: TestFunction, dim: usize) -> Function {
+    let (lo, hi) = kind.default_domain();
+    Function::new(kind, Bounds::uniform(dim, lo, hi).expect("valid domain")).expect("valid")
+}
+
+fn sample_points(b: &Bounds, k: usize, seed: u64) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut xs = vec![0.0; k * b.dim()];
+    for x in xs.chunks_exact_mut(b.dim()) {
+        b.sample(&mut rng, x);
+    }
+    xs
+}
+
+/// Evaluator (counting, budget, trace) against a bare loop over the same batches.
+fn harness_overhead(cfg: &BenchConfig) -> f64 {
+    let kind = TestFunction::Griewank;
+    let f: Arc<dyn Objective> = Arc::new(function(kind, 30));
+    let batch = 200;
+    let xs = sample_points(f.bounds(), batch, 10);
+    let rounds = (cfg.evaluations as usize).div_ceil(batch);
+    let mut vals = vec![0.0; batch];
+    let bare = time(cfg.repeats, || {
+        for _ in 0..rounds {
+            f.evaluate_batch(&xs, &mut vals);
+        }
+    });
+    let harness = time(cfg.repeats, || {
+        let mut ev = Evaluator::new(Arc::clone(&f), (rounds * batch) as u64, None);
+        while !ev.done() {
+            ev.evaluate_batch(&xs, &mut vals);
+        }
+    });
+    harness / bare - 1.0
+}
+
+/// MSGA on 5 membrane threads against one thread, on a Bouc-Wen fit.
+fn msga_threads(cfg: &BenchConfig) -> f64 {
+    let (u, y) = fixtures::record(cfg.samples);
+    let rec = Recording::uniform("bench", 1e-3, u, y).expect("valid record");
+    let fit: Arc<dyn Objective> =
+        Arc::new(BoucWenFit::new(&rec, &[], false, true, 0.0, 1.5).expect("valid fit"));
+    let budget = (cfg.evaluations / 20).max(2000);
+    let run = |threads: bool| {
+        let opt = MsgaConfig {
+            threads,
+            ..MsgaConfig::default()
+        };
+        time(cfg.repeats.min(3), || {
+            run_trial(TrialSpec {
+                objective_id: "bouc-wen",
+                optimizer_id: "msga",
+                trial: 0,
+                objective: Arc::clone(&fit),
+                optimizer: &opt,
+                budget,
+                stop_value: None,
+                seed: TrialSeed::from_u64(1),
+            });
+        })
+    };
+    run(false) / run(true)
+}
+
+impl BenchReport {
+    /// The table as printed by `optbench bench`.
+    pub fn render(&self) -> String {
+        let mut s = String::new();
+        let path = if self.accelerated {
+            "AVX2+FMA"
+        } else {
+            "portable"
+        };
+        s.push_str(&format!(
+            "evaluation speed, per core ({} threads, batched kernels: {path})\n\n",
+            self.threads
+        ));
+        s.push_str(&format!(
+            "{:<28} {:>12} {:>10} {:>10} {:>10} {:>9} {:>9}\n",
+            "objective", "unit", "scalar", "batched", "threads", "b/s", "t/b"
+        ));
+        for r in &self.rows {
+            s.push_str(&format!(
+                "{:<28} {:>12} {:>10.1} {:>10.1} {:>10.1} {:>8.1}x {:>8.2}x\n",
+                r.name,
+                r.unit,
+                r.rate(r.scalar_s, 1),
+                r.rate(r.batched_s, 1),
+                r.rate(r.threads_s, r.threads),
+                r.speedup(),
+                r.batched_s / r.threads_s,
+            ));
+        }
+        s.push_str(
+            "\nscalar: one individual at a time (std exp/powf); batched: the objective's population path;\nthreads: batched on every thread, per core; b/s = batched/scalar; t/b = threads/batched (whole machine)\n\n",
+        );
+        s.push_str(&format!(
+            "harness overhead on griewank-30 (Evaluator vs bare loop): {:+.1} % (goal <= 5 %)\n",
+            100.0 * self.harness_overhead
+        ));
+        s.push_str(&format!(
+            "msga on the bouc-wen fit, 5 membrane threads / 1 thread: {:.2}x\n",
+            self.msga_threads_speedup
+        ));
+        if let Some(bw) = self.rows.iter().find(|r| r.name == "bouc-wen") {
+            s.push_str(&format!("bouc-wen batched/scalar = {:.1}x\n", bw.speedup()));
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_tiny_run_measures_every_row_and_ends_with_the_bouc_wen_ratio() {
+        let cfg = BenchConfig {
+            samples: 200,
+            population: 20,
+            repeats: 1,
+            evaluations: 2000,
+        };
+        let r = run(&cfg);
+        assert_eq!(r.rows.len(), 6);
+        for row in &r.rows {
+            assert!(row.scalar_s > 0.0 && row.batched_s > 0.0 && row.threads_s > 0.0);
+        }
+        assert!(r.harness_overhead.is_finite() && r.msga_threads_speedup > 0.0);
+        let text = r.render();
+        let last = text.lines().last().unwrap();
+        assert!(last.starts_with("bouc-wen batched/scalar = "), "{last}");
+        assert!(last.ends_with('x'));
+    }
+}
