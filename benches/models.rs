@@ -7,54 +7,20 @@
 //! Samples/s = individuals × samples / time (criterion's "elem/s").
 
 use criterion::{BenchmarkId, Criterion, Throughput};
-use optbench::physics::bouc_wen::{self, BoucWenParams};
+use optbench::physics::bouc_wen;
 use optbench::physics::bouc_wen_fast::{self, FastInput};
 use optbench::physics::rbf::{self, Mode, Narx, RbfNet, Regressors};
 use optbench::physics::rbf_fast::RbfBatch;
-use rand::{RngExt, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use optbench::speed::fixtures;
 use rayon::prelude::*;
 use std::hint::black_box;
 
 const N: usize = 10_000;
 const POP: usize = 200;
 
-fn record() -> (Vec<f64>, Vec<f64>) {
-    let u: Vec<f64> = (0..N)
-        .map(|k| 2.35 + 2.3 * (2.0 * std::f64::consts::PI * 10.0 * k as f64 * 1e-3).sin())
-        .collect();
-    let p = BoucWenParams {
-        d_e: 0.1545,
-        alpha: 0.045,
-        beta: 0.45,
-        gamma: 0.225,
-        n: 1.0,
-        d0: 0.0,
-    };
-    let mut y = vec![0.0; N];
-    bouc_wen::simulate(&p, &u, &mut y);
-    (u, y)
-}
-
-/// A population around the truth (each parameter within ±50 %), as in mid-search.
-fn population() -> Vec<BoucWenParams> {
-    let mut rng = ChaCha8Rng::seed_from_u64(7);
-    let mut f = |x: f64| x * rng.random_range(0.5..1.5);
-    (0..POP)
-        .map(|_| BoucWenParams {
-            d_e: f(0.1545),
-            alpha: f(0.045),
-            beta: f(0.45),
-            gamma: f(0.225),
-            n: f(1.0),
-            d0: 0.0,
-        })
-        .collect()
-}
-
 fn bouc_wen_costs(c: &mut Criterion) {
-    let (u, y) = record();
-    let pop = population();
+    let (u, y) = fixtures::record(N);
+    let pop = fixtures::bouc_wen_population(POP, 7);
     let input = FastInput::new(&u, &y, 1);
     let mut out = vec![0.0; POP];
     let mut g = c.benchmark_group("bouc_wen_pop200_10k");
@@ -93,16 +59,11 @@ fn bouc_wen_costs(c: &mut Criterion) {
 }
 
 fn rbf_costs(c: &mut Criterion) {
-    let (u, y) = record();
+    let (u, y) = fixtures::record(N);
     let (net, narx) = (RbfNet::SEED, Narx::SEED);
     let regs = Regressors::new(&narx, &u, &y);
-    let (lo, hi) = regs.input_ranges();
-    let base = rbf::init_params(&net, &lo, &hi);
-    let mut rng = ChaCha8Rng::seed_from_u64(8);
     let d = net.n_params();
-    let pop: Vec<f64> = (0..POP * d)
-        .map(|q| base[q % d] * rng.random_range(0.8..1.2))
-        .collect();
+    let pop = fixtures::rbf_population(&u, &y, POP, 8);
     let batch = RbfBatch::new(net, narx, &u, &y);
     let mut out = vec![0.0; POP];
     let mut g = c.benchmark_group("rbf_3_7_1_pop200_10k");
