@@ -452,6 +452,7 @@ mod tests {
             let u = sine(f, 2.0);
             let p = params(0.003, 0.03, 0.015, n);
             let e = scheme_error(&p, &u);
+            eprintln!("f {f} Hz, n {n}: {e:.1e} of max|h|");
             assert!(e < tol, "f {f} n {n}: {e:e} ≥ {tol:e}");
         }
     }
