@@ -48,7 +48,9 @@ use super::fastmath;
 
 /// Individuals per structure-of-arrays block: enough independent chains per vector unit
 /// to hide the latency of each stage's dependency chain.
-pub const LANES: usize = 16;
+pub const LANES: usize = 32;
+/// Block width for the rest of a population (at most `NARROW - 1` padded lanes).
+const NARROW: usize = 8;
 
 /// Floor on `|g|` before logarithms (keeps `|g|^(n-1)` finite at `g = 0`).
 const TINY: f64 = 1e-300;
@@ -221,6 +223,57 @@ impl Math for Libm {
 
 use fastmath::select;
 
+// One sub-step, in stages. The batched loops run each stage over every lane before the next
+// (short independent chains the CPU overlaps); [`substep`] composes them for one lane. The
+// operations per lane are the same either way, so both give the same bits.
+
+/// Stage 1: the state in the step's direction and `log2 |g|`.
+#[inline(always)]
+fn stage_log_g<M: Math>(h: f64, s: f64) -> (f64, f64) {
+    let g = s * h;
+    (g, M::log2(select(g.abs() > TINY, g.abs(), TINY)))
+}
+
+/// Stage 2: the half-Euler predictor `g½` (clamped), returned as `(|g½| floored, c(g½)·sgn)`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn stage_predict<M: Math>(
+    g: f64,
+    log_g: f64,
+    half_l: f64,
+    alpha: f64,
+    c_pos: f64,
+    c_neg: f64,
+    n: f64,
+    eq_lo: f64,
+    eq_hi: f64,
+) -> (f64, f64) {
+    let pn = M::exp2(n * log_g);
+    let c0 = select(g >= 0.0, c_pos, c_neg);
+    let rate = alpha - c0 * pn;
+    let gh = half_l.mul_add(rate, g);
+    let lo = select(g < eq_lo, g, eq_lo);
+    let hi = select(g > eq_hi, g, eq_hi);
+    let gh = select(gh < lo, lo, select(gh > hi, hi, gh));
+    let agh = select(gh.abs() > TINY, gh.abs(), TINY);
+    (agh, select(gh >= 0.0, c_pos, -c_neg))
+}
+
+/// Stage 3: the corrector's exponent `z = -K(g½) ℓ`, clamped, from `log2 |g½|`.
+#[inline(always)]
+fn stage_exponent<M: Math>(log_gh: f64, ch: f64, n: f64, l: f64) -> f64 {
+    let k = ch * M::exp2((n - 1.0) * log_gh);
+    let z = -k * l;
+    select(z < -Z_MAX, -Z_MAX, select(z > Z_MAX, Z_MAX, z))
+}
+
+/// Stage 4: the exact solution of the frozen linear ODE, back in `h`.
+#[inline(always)]
+fn stage_correct<M: Math>(g: f64, z: f64, alpha: f64, l: f64, s: f64) -> f64 {
+    let (ez, em1) = M::exp_expm1(z);
+    s * g.mul_add(ez, alpha * l * fastmath::phi1(z, em1))
+}
+
 /// One sub-step of length `l` in direction `s` from hysteretic state `h`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
@@ -235,23 +288,10 @@ fn substep<M: Math>(
     eq_lo: f64,
     eq_hi: f64,
 ) -> f64 {
-    let g = s * h;
-    let ag = select(g.abs() > TINY, g.abs(), TINY);
-    let pn = M::exp2(n * M::log2(ag));
-    let c0 = select(g >= 0.0, c_pos, c_neg);
-    let rate = alpha - c0 * pn;
-    let gh = (0.5 * l).mul_add(rate, g);
-    let lo = select(g < eq_lo, g, eq_lo);
-    let hi = select(g > eq_hi, g, eq_hi);
-    let gh = select(gh < lo, lo, select(gh > hi, hi, gh));
-    let agh = select(gh.abs() > TINY, gh.abs(), TINY);
-    let ch = select(gh >= 0.0, c_pos, -c_neg);
-    let k = ch * M::exp2((n - 1.0) * M::log2(agh));
-    let z = -k * l;
-    let z = select(z < -Z_MAX, -Z_MAX, select(z > Z_MAX, Z_MAX, z));
-    let (ez, em1) = M::exp_expm1(z);
-    let g1 = g.mul_add(ez, alpha * l * fastmath::phi1(z, em1));
-    s * g1
+    let (g, log_g) = stage_log_g::<M>(h, s);
+    let (agh, ch) = stage_predict::<M>(g, log_g, 0.5 * l, alpha, c_pos, c_neg, n, eq_lo, eq_hi);
+    let z = stage_exponent::<M>(M::log2(agh), ch, n, l);
+    stage_correct::<M>(g, z, alpha, l, s)
 }
 
 /// Fitting cost `J = Σe²/2` of `p` on `input` with the `std` functions, one individual.
@@ -332,17 +372,25 @@ pub unsafe fn costs_avx2(params: &[BoucWenParams], input: &FastInput, out: &mut 
 #[inline(always)]
 fn costs_blocks(params: &[BoucWenParams], input: &FastInput, out: &mut [f64]) {
     assert_eq!(params.len(), out.len(), "one cost per parameter set");
-    for (ps, os) in params.chunks(LANES).zip(out.chunks_mut(LANES)) {
-        if ps.len() == LANES {
-            run_block::<Poly, LANES>(ps, input, os);
-        } else {
-            // Pad the tail with copies of its last individual (results discarded).
-            let mut pad = [ps[ps.len() - 1]; LANES];
-            pad[..ps.len()].copy_from_slice(ps);
-            let mut o = [0.0; LANES];
-            run_block::<Poly, LANES>(&pad, input, &mut o);
-            os.copy_from_slice(&o[..ps.len()]);
-        }
+    // Wide blocks, then narrow ones for the rest (a lane's result does not depend on the
+    // block width).
+    let wide = params.len() / LANES * LANES;
+    for (ps, os) in params[..wide]
+        .chunks(LANES)
+        .zip(out[..wide].chunks_mut(LANES))
+    {
+        run_block::<Poly, LANES>(ps, input, os);
+    }
+    for (ps, os) in params[wide..]
+        .chunks(NARROW)
+        .zip(out[wide..].chunks_mut(NARROW))
+    {
+        // Pad the tail with copies of its last individual (results discarded).
+        let mut pad = [ps[ps.len() - 1]; NARROW];
+        pad[..ps.len()].copy_from_slice(ps);
+        let mut o = [0.0; NARROW];
+        run_block::<Poly, NARROW>(&pad, input, &mut o);
+        os.copy_from_slice(&o[..ps.len()]);
     }
 }
 
@@ -372,11 +420,25 @@ fn run_block<M: Math, const W: usize>(ps: &[BoucWenParams], input: &FastInput, o
     for k in 0..input.len() {
         let (s, l) = (input.sign[k], input.ell[k]);
         if l > 0.0 {
+            let half_l = 0.5 * l;
             for _ in 0..input.substeps {
+                let (mut g, mut a, mut b) = ([0.0; W], [0.0; W], [0.0; W]);
                 for i in 0..W {
-                    h[i] = substep::<M>(
-                        h[i], s, l, alpha[i], c_pos[i], c_neg[i], n[i], eq_lo[i], eq_hi[i],
+                    (g[i], a[i]) = stage_log_g::<M>(h[i], s);
+                }
+                for i in 0..W {
+                    (a[i], b[i]) = stage_predict::<M>(
+                        g[i], a[i], half_l, alpha[i], c_pos[i], c_neg[i], n[i], eq_lo[i], eq_hi[i],
                     );
+                }
+                for i in 0..W {
+                    a[i] = M::log2(a[i]);
+                }
+                for i in 0..W {
+                    a[i] = stage_exponent::<M>(a[i], b[i], n[i], l);
+                }
+                for i in 0..W {
+                    h[i] = stage_correct::<M>(g[i], a[i], alpha[i], l, s);
                 }
             }
         }

@@ -20,9 +20,9 @@ use super::fastmath::{self, select};
 use super::rbf::{Mode, Narx, RbfNet, error_cap, exponent_factor};
 
 /// Individuals per free-run block.
-pub const LANES: usize = 8;
+pub const LANES: usize = 16;
 /// Samples per one-step block.
-pub const TLANES: usize = 8;
+pub const TLANES: usize = 16;
 
 /// A recording prepared for batched RBF costs.
 #[derive(Clone, Debug)]
@@ -118,10 +118,12 @@ impl RbfBatch {
         let len = t.len();
         let cap = self.cap;
         let mut acc = [0.0; TLANES];
+        // Exponents of every node and lane, then every `exp` in one flat loop (independent
+        // chains for the CPU to overlap), then the weighted sums in node order.
+        let mut z = vec![[0.0; TLANES]; h];
         let mut k0 = 0;
         while k0 + TLANES <= len {
-            let mut ym = [0.0; TLANES];
-            for j in 0..h {
+            for (j, zj) in z.iter_mut().enumerate() {
                 let mut d2 = [0.0; TLANES];
                 for i in 0..m {
                     let col = &self.cols[i][k0..k0 + TLANES];
@@ -132,7 +134,18 @@ impl RbfBatch {
                     }
                 }
                 for l in 0..TLANES {
-                    ym[l] = w[j].mul_add(fastmath::exp(kf[j] * d2[l]), ym[l]);
+                    zj[l] = kf[j] * d2[l];
+                }
+            }
+            for zj in z.iter_mut() {
+                for v in zj.iter_mut() {
+                    *v = fastmath::exp(*v);
+                }
+            }
+            let mut ym = [0.0; TLANES];
+            for (j, zj) in z.iter().enumerate() {
+                for l in 0..TLANES {
+                    ym[l] = w[j].mul_add(zj[l], ym[l]);
                 }
             }
             for l in 0..TLANES {
@@ -188,9 +201,9 @@ impl RbfBatch {
         let mut sum = [0.0; LANES];
         let never = f64::INFINITY;
         let mut at = [never; LANES];
+        let mut z = vec![[0.0; LANES]; h];
         for k in s..n {
-            let mut ym = [0.0; LANES];
-            for j in 0..h {
+            for (j, zj) in z.iter_mut().enumerate() {
                 let mut d2 = [0.0; LANES];
                 for i in 0..il {
                     let x = self.r[k - i];
@@ -207,9 +220,20 @@ impl RbfBatch {
                         d2[l] = dx.mul_add(dx, d2[l]);
                     }
                 }
-                let (kj, wj) = (&kf[j], &w[j]);
+                let kj = &kf[j];
                 for l in 0..LANES {
-                    ym[l] = wj[l].mul_add(fastmath::exp(kj[l] * d2[l]), ym[l]);
+                    zj[l] = kj[l] * d2[l];
+                }
+            }
+            for zj in z.iter_mut() {
+                for v in zj.iter_mut() {
+                    *v = fastmath::exp(*v);
+                }
+            }
+            let mut ym = [0.0; LANES];
+            for (zj, wj) in z.iter().zip(&w) {
+                for l in 0..LANES {
+                    ym[l] = wj[l].mul_add(zj[l], ym[l]);
                 }
             }
             let (yk, kfl) = (self.y[k], k as f64);
