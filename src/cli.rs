@@ -269,7 +269,7 @@ pub fn list() -> String {
     for k in objective_kinds() {
         section(&mut s, "objective", k.name, k.help, k.params);
     }
-    s.push_str("OPTIMIZERS ([[optimizer]] kind = ...; also id, polish)\n\n");
+    s.push_str("OPTIMIZERS ([[optimizer]] kind = ...; also id, polish, polish_with)\n\n");
     for k in optimizer_kinds() {
         section(&mut s, "optimizer", k.name, k.help, k.params);
     }
