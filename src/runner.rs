@@ -55,18 +55,7 @@ pub fn run_trials(
         plan.par_iter()
             .enumerate()
             .map(|(i, t)| {
-                let obj = &suite.objectives[t.objective];
-                let opt = &suite.optimizers[t.optimizer];
-                let record = run_trial(TrialSpec {
-                    objective_id: &obj.id,
-                    optimizer_id: &opt.id,
-                    trial: t.trial,
-                    objective: Arc::clone(&obj.objective),
-                    optimizer: opt.config.as_ref(),
-                    budget: obj.budget,
-                    stop_value: obj.stop_value(),
-                    seed: suite.seed_of(t),
-                });
+                let record = run_planned(suite, t);
                 done(i, &record);
                 bar.inc(1);
                 record
@@ -75,4 +64,20 @@ pub fn run_trials(
     });
     bar.finish_and_clear();
     Ok((records, pool.current_num_threads()))
+}
+
+/// Runs one planned trial of `suite` (on the calling thread).
+pub fn run_planned(suite: &Suite, t: &PlannedTrial) -> TrialRecord {
+    let obj = &suite.objectives[t.objective];
+    let opt = &suite.optimizers[t.optimizer];
+    run_trial(TrialSpec {
+        objective_id: &obj.id,
+        optimizer_id: &opt.id,
+        trial: t.trial,
+        objective: Arc::clone(&obj.objective),
+        optimizer: opt.config.as_ref(),
+        budget: obj.budget,
+        stop_value: obj.stop_value(),
+        seed: suite.seed_of(t),
+    })
 }

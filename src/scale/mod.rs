@@ -14,6 +14,9 @@
 //! shards come from the same suite and build, that every planned trial is there, and writes
 //! one results folder in plan order, identical to a single run's.
 
+#[cfg(feature = "mpi")]
+pub mod mpi;
+
 use crate::error::{Error, Result};
 use crate::harness::TrialRecord;
 use crate::results::progress::{FORMAT, ProgressHeader, ProgressLine, ProgressLog, read_progress};
@@ -317,8 +320,18 @@ fn unique(lines: &[ProgressLine]) -> usize {
         .len()
 }
 
-/// Runs (or resumes) a suite or one shard of it; returns the text to print.
+/// Runs (or resumes) a suite or one shard of it; returns the text to print. Built with
+/// the `mpi` feature and started by `mpirun`, the trials are spread over the ranks.
 pub fn run(req: &RunRequest) -> Result<String> {
+    #[cfg(feature = "mpi")]
+    if mpi::launched_by_mpirun() {
+        return mpi::run(req);
+    }
+    run_local(req)
+}
+
+/// [`run`] in this process, on its thread pool.
+pub fn run_local(req: &RunRequest) -> Result<String> {
     let started = std::time::SystemTime::now();
     let p = prepare(req)?;
     let (log, mut done) = open_log(&p, req.resume, req.force_resume)?;
