@@ -1,11 +1,8 @@
 //! Command-line interface. Parsing and dispatch only; the work lives in the library.
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::registry::{objective_kinds, optimizer_kinds};
 use crate::report::table::markdown;
-use crate::results::{Provenance, write_run};
-use crate::runner::{RunOptions, run_suite};
-use crate::suite::Suite;
 use clap::{Parser, Subcommand};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -25,6 +22,9 @@ pub enum Command {
     /// Regenerate the report (tables, plots, IOHprofiler export) of a results folder from
     /// its stored traces; with two folders of the same suite, compare them.
     Report(ReportArgs),
+    /// Combine the results folders of `run --shard K/N` (or of resumable runs of the same
+    /// suite) into one, identical to a single run's.
+    Merge(MergeArgs),
     /// Fit one model to one recording with one optimizer; numbers and figures in --out.
     Fit(FitArgs),
     /// Write piezo-twin recordings: the seed's experiments, or one --signal.
@@ -66,6 +66,31 @@ pub struct RunArgs {
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     pub budget: Option<u64>,
     /// No progress bar and no table.
+    #[arg(long, short)]
+    pub quiet: bool,
+    /// Continue an interrupted run in --out: finished trials (in progress.jsonl) are kept,
+    /// the rest run. Starts fresh if there is nothing to resume.
+    #[arg(long)]
+    pub resume: bool,
+    /// Resume even if the suite, overrides, build or shard changed: keep only the stored
+    /// trials whose configuration is unchanged.
+    #[arg(long)]
+    pub force_resume: bool,
+    /// Run only share K of N of the trials (round robin over the plan), e.g. 3/8; default
+    /// --out results/NAME-shard-K-of-N. Combine the shards with `optbench merge`.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<crate::scale::Shard>,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct MergeArgs {
+    /// Results folders of the shards.
+    #[arg(required = true)]
+    pub dirs: Vec<PathBuf>,
+    /// Where the merged results go.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// No table.
     #[arg(long, short)]
     pub quiet: bool,
 }
@@ -152,6 +177,10 @@ pub fn main() -> i32 {
 fn dispatch(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Run(args) => run(args),
+        Command::Merge(a) => {
+            print!("{}", crate::scale::merge(&a.dirs, &a.out, a.quiet)?);
+            Ok(())
+        }
         Command::Report(args) => {
             match args.other {
                 Some(other) => print!("{}", crate::report::compare(&args.results, &other)?),
@@ -221,45 +250,22 @@ fn dispatch(cli: Cli) -> Result<()> {
 }
 
 fn run(args: RunArgs) -> Result<()> {
-    let mut suite = Suite::load(&args.suite)?;
-    if let Some(t) = args.trials {
-        suite.trials = t as usize;
-    }
-    if let Some(s) = args.seed {
-        suite.seed = s;
-    }
-    if let Some(b) = args.budget {
-        for o in &mut suite.objectives {
-            o.budget = b;
-        }
-    }
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("results").join(&suite.name));
-    if out.is_file() {
-        return Err(Error::Input(format!(
-            "--out {}: is a file, expected a folder",
-            out.display()
-        )));
-    }
-    let started = std::time::SystemTime::now();
-    let opts = RunOptions {
+    let req = crate::scale::RunRequest {
+        suite: args.suite,
+        out: args.out,
+        overrides: crate::scale::Overrides {
+            trials: args.trials.map(|t| t as usize),
+            seed: args.seed,
+            budget: args.budget,
+        },
         threads: args.threads.map(|t| t as usize),
         progress: !args.quiet && std::io::stdout().is_terminal() && std::io::stderr().is_terminal(),
+        quiet: args.quiet,
+        resume: args.resume,
+        force_resume: args.force_resume,
+        shard: args.shard,
     };
-    let (records, threads) = run_suite(&suite, &opts)?;
-    let provenance = Provenance::new(&suite, threads, started);
-    write_run(&out, &suite, &records, &provenance)?;
-    let table = crate::report::generate(&out)?;
-    if !args.quiet {
-        println!(
-            "suite {} (seed {}, {} trials, {} threads, {:.1} s)\n",
-            suite.name, suite.seed, suite.trials, threads, provenance.wall_s
-        );
-        print!("{table}");
-        println!("\nresults and report: {}", out.display());
-    }
+    print!("{}", crate::scale::run(&req)?);
     Ok(())
 }
 
@@ -299,7 +305,7 @@ pub fn list() -> String {
     for k in objective_kinds() {
         section(&mut s, "objective", k.name, k.help, k.params);
     }
-    s.push_str("OPTIMIZERS ([[optimizer]] kind = ...; also id, polish)\n\n");
+    s.push_str("OPTIMIZERS ([[optimizer]] kind = ...; also id, polish, polish_with)\n\n");
     for k in optimizer_kinds() {
         section(&mut s, "optimizer", k.name, k.help, k.params);
     }

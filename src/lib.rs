@@ -9,6 +9,7 @@
 //! - [`harness`]: the evaluator (the one place evaluations are counted), seeding, trials.
 //! - [`suite`]: TOML suites, parameter validation, the plan of trials.
 //! - [`results`]: the result store (traces, summary, provenance), written atomically.
+//! - [`scale`]: resume after a crash, shards and their merge, MPI ranks (feature `mpi`).
 //! - [`report`]: what is printed and rendered from stored results.
 //! - [`params`]: declarative parameter specifications shared by objectives and optimizers.
 
@@ -25,6 +26,7 @@ pub mod registry;
 pub mod report;
 pub mod results;
 pub mod runner;
+pub mod scale;
 pub mod signal;
 pub mod simulate;
 pub mod speed;

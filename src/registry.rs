@@ -19,6 +19,8 @@ use crate::recording::Recording;
 use std::path::Path;
 use std::sync::Arc;
 
+mod baselines;
+
 /// An objective family a suite can name.
 pub struct ObjectiveKind {
     pub name: &'static str,
@@ -567,7 +569,7 @@ fn build_bp(p: &Params) -> Result<Arc<dyn OptimizerConfig>, Error> {
 
 /// Every optimizer kind.
 pub fn optimizer_kinds() -> Vec<OptimizerKind> {
-    vec![
+    let mut kinds = vec![
         OptimizerKind {
             name: "ga",
             help: "real-coded GA: roulette selection, arithmetic crossover, mutation, elitism",
@@ -604,7 +606,9 @@ pub fn optimizer_kinds() -> Vec<OptimizerKind> {
             params: RANDOM_PARAMS,
             build: build_random,
         },
-    ]
+    ];
+    kinds.extend(baselines::kinds());
+    kinds
 }
 
 /// Builds the named optimizer with all defaults (for code outside suites).

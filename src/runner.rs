@@ -3,7 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::harness::{TrialRecord, TrialSpec, run_trial};
-use crate::suite::Suite;
+use crate::suite::{PlannedTrial, Suite};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -19,6 +19,18 @@ pub struct RunOptions {
 
 /// Runs every trial of `suite`; returns the records in plan order and the thread count.
 pub fn run_suite(suite: &Suite, opts: &RunOptions) -> Result<(Vec<TrialRecord>, usize)> {
+    run_trials(suite, &suite.plan(), opts, &|_, _| {})
+}
+
+/// Runs the trials of `plan` (all or part of `suite.plan()`), calling `done(i, record)` on
+/// the worker thread the moment trial `plan[i]` ends (to store it at once); returns the
+/// records in the order of `plan` and the thread count.
+pub fn run_trials(
+    suite: &Suite,
+    plan: &[PlannedTrial],
+    opts: &RunOptions,
+    done: &(dyn Fn(usize, &TrialRecord) + Sync),
+) -> Result<(Vec<TrialRecord>, usize)> {
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(n) = opts.threads {
         builder = builder.num_threads(n);
@@ -26,7 +38,6 @@ pub fn run_suite(suite: &Suite, opts: &RunOptions) -> Result<(Vec<TrialRecord>, 
     let pool = builder
         .build()
         .map_err(|e| Error::Input(format!("cannot start {:?} threads: {e}", opts.threads)))?;
-    let plan = suite.plan();
     let bar = if opts.progress {
         let bar = ProgressBar::new(plan.len() as u64);
         bar.set_style(
@@ -42,19 +53,10 @@ pub fn run_suite(suite: &Suite, opts: &RunOptions) -> Result<(Vec<TrialRecord>, 
     };
     let records = pool.install(|| {
         plan.par_iter()
-            .map(|t| {
-                let obj = &suite.objectives[t.objective];
-                let opt = &suite.optimizers[t.optimizer];
-                let record = run_trial(TrialSpec {
-                    objective_id: &obj.id,
-                    optimizer_id: &opt.id,
-                    trial: t.trial,
-                    objective: Arc::clone(&obj.objective),
-                    optimizer: opt.config.as_ref(),
-                    budget: obj.budget,
-                    stop_value: obj.stop_value(),
-                    seed: suite.seed_of(t),
-                });
+            .enumerate()
+            .map(|(i, t)| {
+                let record = run_planned(suite, t);
+                done(i, &record);
                 bar.inc(1);
                 record
             })
@@ -62,4 +64,20 @@ pub fn run_suite(suite: &Suite, opts: &RunOptions) -> Result<(Vec<TrialRecord>, 
     });
     bar.finish_and_clear();
     Ok((records, pool.current_num_threads()))
+}
+
+/// Runs one planned trial of `suite` (on the calling thread).
+pub fn run_planned(suite: &Suite, t: &PlannedTrial) -> TrialRecord {
+    let obj = &suite.objectives[t.objective];
+    let opt = &suite.optimizers[t.optimizer];
+    run_trial(TrialSpec {
+        objective_id: &obj.id,
+        optimizer_id: &opt.id,
+        trial: t.trial,
+        objective: Arc::clone(&obj.objective),
+        optimizer: opt.config.as_ref(),
+        budget: obj.budget,
+        stop_value: obj.stop_value(),
+        seed: suite.seed_of(t),
+    })
 }

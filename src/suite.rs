@@ -21,6 +21,7 @@
 //! kind = "msga"
 //! id = "MSGA"             # optional name in results (default: the kind)
 //! polish = 0.1            # optional: Nelder-Mead polish of the best point, last 10 % of the budget
+//! polish_with = "lbfgs"   # optional: the polish's method, "nelder-mead" (default) or "lbfgs"
 //! objects = 40
 //! ```
 //!
@@ -333,6 +334,10 @@ impl Suite {
             )?;
             let id = take_str(&mut fields, "id", path, text)?.unwrap_or_else(|| kind.name.into());
             let polish = take_float(&mut fields, "polish", path, text)?;
+            let polish_line = fields
+                .get("polish_with")
+                .map(|v| line_of(text, v.span().start));
+            let polish_with = take_str(&mut fields, "polish_with", path, text)?;
             check_id(&id, &mut ids, path, line, "optimizer")?;
             let params = Params::validate(
                 kind.params,
@@ -354,11 +359,19 @@ impl Suite {
                         ),
                     ));
                 }
+                let local = crate::optimizer::polish_method(polish_with.as_deref())
+                    .map_err(|m| Error::at(path, polish_line.unwrap_or(line), format!("optimizer `{id}`: {m}")))?;
                 config = Arc::new(crate::optimizer::nelder_mead::PolishedConfig {
                     global: config,
                     share,
-                    local: Default::default(),
+                    local,
                 });
+            } else if let Some(l) = polish_line {
+                return Err(Error::at(
+                    path,
+                    l,
+                    format!("optimizer `{id}`: `polish_with` needs `polish` = a budget share in (0, 1)"),
+                ));
             }
             optimizers.push(OptimizerEntry {
                 id,

@@ -167,12 +167,12 @@ fn unknown_names_list_the_valid_ones() {
     );
     rejects(
         &format!(
-            "{HEAD}[[objective]]\nkind = \"griewank\"\ndim = 2\n[[optimizer]]\nkind = \"cmaes\"\n"
+            "{HEAD}[[objective]]\nkind = \"griewank\"\ndim = 2\n[[optimizer]]\nkind = \"cma-es\"\n"
         ),
         &[
             "bad.toml:8:",
-            "unknown optimizer kind `cmaes`",
-            "ga, pso, msga, bp, nelder-mead, random",
+            "unknown optimizer kind `cma-es`",
+            "ga, pso, msga, bp, nelder-mead, random, de, shade, cmaes, lbfgs",
         ],
     );
     rejects(

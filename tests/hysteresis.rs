@@ -224,6 +224,7 @@ fn hysteresis_suite_runs_end_to_end_at_small_size() {
         "Table 3.4",
         "(seed 0.0974)",
         "free-run RMSE",
+        "Strong baselines",
     ] {
         assert!(report.contains(t), "{t} missing");
     }

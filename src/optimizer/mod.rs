@@ -2,8 +2,11 @@
 //! evaluations only through the [`Evaluator`] it is handed; the harness owns the loop, the
 //! budget, the trace and the random streams. Optimizers know nothing of files or suites.
 
+pub mod cmaes;
+pub mod de;
 pub mod ga;
 pub mod gradient;
+pub mod lbfgs;
 pub mod msga;
 pub mod nelder_mead;
 pub mod operators;
@@ -35,4 +38,15 @@ pub trait OptimizerConfig: Send + Sync + fmt::Debug {
     /// A new optimizer for one trial over `bounds`, drawing every random number from
     /// `seed`'s streams. `budget` lets schedules (PSO's inertia) span the whole run.
     fn start(&self, bounds: &Bounds, budget: u64, seed: &TrialSeed) -> Box<dyn Optimizer>;
+}
+
+/// The local search named by a suite's `polish_with` (None: Nelder-Mead).
+pub fn polish_method(name: Option<&str>) -> Result<nelder_mead::LocalSearch, String> {
+    match name {
+        None | Some("nelder-mead") => Ok(nelder_mead::LocalSearch::default()),
+        Some("lbfgs") => Ok(nelder_mead::LocalSearch::Lbfgs(lbfgs::LbfgsConfig::default())),
+        Some(other) => Err(format!(
+            "`polish_with` = \"{other}\": expected \"nelder-mead\" or \"lbfgs\""
+        )),
+    }
 }

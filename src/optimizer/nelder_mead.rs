@@ -167,13 +167,26 @@ impl Optimizer for NelderMead {
     }
 }
 
-/// A global optimizer followed by a Nelder-Mead polish of its best point for the last
-/// `share` of the budget (the seed-reproduction suites leave it off).
+/// The local search of a polish.
+#[derive(Debug, Clone)]
+pub enum LocalSearch {
+    NelderMead(NelderMeadConfig),
+    Lbfgs(super::lbfgs::LbfgsConfig),
+}
+
+impl Default for LocalSearch {
+    fn default() -> Self {
+        LocalSearch::NelderMead(NelderMeadConfig::default())
+    }
+}
+
+/// A global optimizer followed by a local polish (Nelder-Mead by default, or L-BFGS) of its
+/// best point for the last `share` of the budget (the seed-reproduction suites leave it off).
 #[derive(Debug, Clone)]
 pub struct PolishedConfig {
     pub global: std::sync::Arc<dyn OptimizerConfig>,
     pub share: f64,
-    pub local: NelderMeadConfig,
+    pub local: LocalSearch,
 }
 
 impl OptimizerConfig for PolishedConfig {
@@ -182,14 +195,27 @@ impl OptimizerConfig for PolishedConfig {
     }
 
     fn needs_gradient(&self) -> bool {
-        self.global.needs_gradient()
+        let local = match &self.local {
+            LocalSearch::NelderMead(_) => false,
+            LocalSearch::Lbfgs(c) => c.needs_gradient(),
+        };
+        self.global.needs_gradient() || local
     }
 
     fn start(&self, bounds: &Bounds, budget: u64, seed: &TrialSeed) -> Box<dyn Optimizer> {
         let switch = ((1.0 - self.share) * budget as f64).floor() as u64;
+        let local: Box<dyn Optimizer> = match &self.local {
+            LocalSearch::NelderMead(c) => Box::new(NelderMead::new(bounds.clone(), c.step, None)),
+            LocalSearch::Lbfgs(c) => Box::new(super::lbfgs::Lbfgs::new(
+                bounds.clone(),
+                c.clone(),
+                seed.rng(super::lbfgs::POLISH_STREAM),
+                None,
+            )),
+        };
         Box::new(Polished {
             global: self.global.start(bounds, switch, seed),
-            local: NelderMead::new(bounds.clone(), self.local.step, None),
+            local,
             switch,
         })
     }
@@ -197,7 +223,7 @@ impl OptimizerConfig for PolishedConfig {
 
 struct Polished {
     global: Box<dyn Optimizer>,
-    local: NelderMead,
+    local: Box<dyn Optimizer>,
     switch: u64,
 }
 

@@ -8,9 +8,11 @@
 //!   provenance.json   tool version, git commit, seed, threads, start/end time, command
 //!   traces.jsonl      one TrialRecord per line, in plan order
 //!   summary.json      per objective x optimizer: finals and their statistics
+//!   progress.jsonl    every finished trial, appended as it ends (resume, shards, merge)
 //! ```
 
 pub mod atomic;
+pub mod progress;
 pub mod store;
 pub mod summary;
 
