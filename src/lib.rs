@@ -11,8 +11,10 @@
 //! - [`results`]: the result store (traces, summary, provenance), written atomically.
 //! - [`report`]: what is printed and rendered from stored results.
 //! - [`params`]: declarative parameter specifications shared by objectives and optimizers.
+//! - [`control`]: hysteresis compensation in closed loop (IMC with RBF networks, PID).
 
 pub mod cli;
+pub mod control;
 pub mod error;
 pub mod fitting;
 pub mod harness;
