@@ -7,18 +7,21 @@
 //! - [`network`]: the 2-7-1 controller network of eq. 4.1-4.8, trained online.
 //! - [`model`]: the internal model, the RBF NARX network fitted by PSO to twin data.
 //! - [`closed_loop`]: the sampled loop, the IMC structure of Fig. 4.2, the divergence guard.
+//! - [`reference`]: the seed's rising-frequency sinusoids and any signal as a reference.
 
 pub mod closed_loop;
 pub mod model;
 pub mod network;
 pub mod pid;
 pub mod plant;
+pub mod reference;
 
 pub use closed_loop::{Controller, Failure, Guard, Imc, LoopRun, run_loop};
 pub use model::{FittedModel, ModelFitConfig, RbfModel};
 pub use network::{NetConfig, RbfController};
 pub use pid::{IncrementalPid, PidGains};
 pub use plant::{LinearPlant, ModelPlant, Plant};
+pub use reference::Reference;
 
 #[cfg(test)]
 mod tests;
