@@ -10,11 +10,14 @@
 //! - [`reference`]: the seed's rising-frequency sinusoids and any signal as a reference.
 
 pub mod closed_loop;
+pub mod command;
+pub mod figures;
 pub mod model;
 pub mod network;
 pub mod pid;
 pub mod plant;
 pub mod reference;
+pub mod run;
 
 pub use closed_loop::{Controller, Failure, Guard, Imc, LoopRun, run_loop};
 pub use model::{FittedModel, ModelFitConfig, RbfModel};
