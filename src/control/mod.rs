@@ -18,6 +18,7 @@ pub mod pid;
 pub mod plant;
 pub mod reference;
 pub mod run;
+pub mod suite;
 
 pub use closed_loop::{Controller, Failure, Guard, Imc, LoopRun, run_loop};
 pub use model::{FittedModel, ModelFitConfig, RbfModel};

@@ -194,10 +194,12 @@ pub struct ModelFitConfig {
     pub budget: u64,
 }
 
-/// The identification signal of suites/hysteresis.toml's Table 3.3 fits: a 1 -> 10 Hz log
-/// chirp over the full 0.05-4.65 V command range.
+/// The identification signal: a 1 -> 10 Hz log chirp like suites/hysteresis.toml's Table 3.3
+/// record, but over 0-4.7 V, down to the rest command the loop starts from. (With the
+/// 0.05-4.65 V record the fitted sensitivity near 0 V is extrapolated and can be negative,
+/// which sent 1 of 16 test loops away from the reference for good.)
 pub const DEFAULT_MODEL_SIGNAL: &str =
-    "chirp:f0=1,f1=10,duration=4,law=log,amp=2.3,offset=2.35,phase=-1.5707963267948966";
+    "chirp:f0=1,f1=10,duration=4,law=log,amp=2.35,offset=2.35,phase=-1.5707963267948966";
 
 impl Default for ModelFitConfig {
     fn default() -> Self {
