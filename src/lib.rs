@@ -12,8 +12,10 @@
 //! - [`scale`]: resume after a crash, shards and their merge, MPI ranks (feature `mpi`).
 //! - [`report`]: what is printed and rendered from stored results.
 //! - [`params`]: declarative parameter specifications shared by objectives and optimizers.
+//! - [`control`]: hysteresis compensation in closed loop (IMC with RBF networks, PID).
 
 pub mod cli;
+pub mod control;
 pub mod error;
 pub mod fitting;
 pub mod harness;

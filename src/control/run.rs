@@ -1,0 +1,325 @@
+//! One closed-loop experiment as the CLI and suites describe it: a controller with its
+//! settings, a reference, the plant (twin overrides), the twin the internal model was
+//! identified on, and the numbers that come out.
+
+use super::closed_loop::{Controller, Guard, LoopRun, run_loop};
+use super::model::{FittedModel, ModelFitConfig, Sensitivity};
+use super::network::NetConfig;
+use super::pid::PidGains;
+use super::reference::Reference;
+use crate::error::{Error, Result};
+use crate::harness::TrialSeed;
+use crate::physics::twin::{Twin, TwinConfig};
+use serde::{Deserialize, Serialize};
+
+/// Sample interval of the loop (s): the seed's 1 ms.
+pub const DT: f64 = 1e-3;
+
+/// Seconds at the start treated as the transient (the seed removed it from its
+/// hysteresis-compensation figures and says errors fall "within a single second").
+pub const DEFAULT_TRANSIENT_S: f64 = 1.0;
+
+/// The controller kinds, as named on the command line and in suites.
+pub const CONTROLLER_KINDS: [&str; 2] = ["imc-rbf", "pid"];
+
+/// Parameters of each kind: (name, meaning).
+pub const PID_KEYS: &[(&str, &str)] = &[
+    ("kp", "proportional gain of eq. 4.9, V/mm (seed 1.0)"),
+    ("ki", "integral gain, V/mm per sample (seed 0.8)"),
+    ("kd", "derivative gain, V/mm (seed 0.6)"),
+];
+
+/// Parameters of `imc-rbf`: (name, meaning).
+pub const IMC_KEYS: &[(&str, &str)] = &[
+    ("learning_rate", "η of eq. 4.6-4.8 (default 0.1)"),
+    ("momentum", "β of eq. 4.6-4.8, in [0, 1) (default 0.9)"),
+    ("hidden", "controller hidden nodes (seed 7)"),
+    (
+        "error_scale",
+        "mm; the network sees [e, Δe]/error_scale (default 0.5)",
+    ),
+    (
+        "centre_spread",
+        "initial centres on [-s, s]² diagonal (default 1)",
+    ),
+    ("width", "initial widths (default 1)"),
+    ("u0", "initial command at zero error, V (default 0)"),
+    (
+        "sensitivity",
+        "held (Σ ∂y/∂u over the input lags, default) or instant (∂y(k)/∂u(k))",
+    ),
+    (
+        "model_mode",
+        "internal model fitted on free-run (default) or one-step (seed) cost",
+    ),
+    (
+        "model_budget",
+        "PSO evaluations of the model fit (default 7500)",
+    ),
+    ("model_swarm", "PSO particles (default 150)"),
+    ("model_hidden", "model hidden nodes (seed 7)"),
+    ("model_signal", "identification command signal (V)"),
+    ("model_duration", "seconds of it (default 4)"),
+];
+
+/// A controller with its settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum ControllerSpec {
+    Pid(PidGains),
+    ImcRbf(ImcSpec),
+}
+
+/// Settings of the IMC loop: its controller network and how its model is identified.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ImcSpec {
+    pub net: NetConfig,
+    pub model: ModelFitConfig,
+    pub sensitivity: Sensitivity,
+}
+
+fn number(kind: &str, key: &str, v: &str) -> Result<f64> {
+    v.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|x| x.is_finite())
+        .ok_or_else(|| {
+            Error::Input(format!(
+                "controller `{kind}`: `{key}` = `{v}` is not a finite number"
+            ))
+        })
+}
+
+fn count(kind: &str, key: &str, v: &str) -> Result<usize> {
+    v.trim()
+        .parse::<usize>()
+        .ok()
+        .filter(|&n| n >= 1)
+        .ok_or_else(|| {
+            Error::Input(format!(
+                "controller `{kind}`: `{key}` = `{v}` is not an integer >= 1"
+            ))
+        })
+}
+
+fn unknown(kind: &str, key: &str, keys: &[(&str, &str)]) -> Error {
+    Error::Input(format!(
+        "controller `{kind}`: unknown parameter `{key}`; valid: {}",
+        keys.iter().map(|k| k.0).collect::<Vec<_>>().join(", ")
+    ))
+}
+
+impl ControllerSpec {
+    /// `kind` (`pid` or `imc-rbf`) with `key=value` settings over the defaults.
+    pub fn parse(kind: &str, params: &[(String, String)]) -> Result<ControllerSpec> {
+        match kind {
+            "pid" => {
+                let mut g = PidGains::default();
+                for (k, v) in params {
+                    let x = number(kind, k, v)?;
+                    match k.as_str() {
+                        "kp" => g.kp = x,
+                        "ki" => g.ki = x,
+                        "kd" => g.kd = x,
+                        _ => return Err(unknown(kind, k, PID_KEYS)),
+                    }
+                }
+                Ok(ControllerSpec::Pid(g))
+            }
+            "imc-rbf" => {
+                let mut net = NetConfig::default();
+                let mut model = ModelFitConfig::default();
+                let mut sensitivity = Sensitivity::default();
+                for (k, v) in params {
+                    match k.as_str() {
+                        "learning_rate" => net.learning_rate = number(kind, k, v)?,
+                        "momentum" => net.momentum = number(kind, k, v)?,
+                        "hidden" => net.hidden = count(kind, k, v)?,
+                        "error_scale" => net.error_scale = number(kind, k, v)?,
+                        "centre_spread" => net.centre_spread = number(kind, k, v)?,
+                        "width" => net.width = number(kind, k, v)?,
+                        "u0" => net.u0 = number(kind, k, v)?,
+                        "sensitivity" => sensitivity = Sensitivity::parse(v.trim())?,
+                        "model_mode" => match v.trim() {
+                            m @ ("one-step" | "free-run") => model.mode = m.into(),
+                            m => {
+                                return Err(Error::Input(format!(
+                                    "controller `{kind}`: `model_mode` = `{m}`: expected one-step or free-run"
+                                )));
+                            }
+                        },
+                        "model_budget" => model.budget = count(kind, k, v)? as u64,
+                        "model_swarm" => model.swarm = count(kind, k, v)?,
+                        "model_hidden" => model.hidden = count(kind, k, v)?,
+                        "model_signal" => {
+                            crate::signal::Signal::parse(v).map_err(|e| {
+                                Error::Input(format!("controller `{kind}`: `model_signal`: {e}"))
+                            })?;
+                            model.signal = v.trim().into();
+                        }
+                        "model_duration" => {
+                            let d = number(kind, k, v)?;
+                            if d <= 0.0 {
+                                return Err(Error::Input(format!(
+                                    "controller `{kind}`: `model_duration` = {d}: must be > 0"
+                                )));
+                            }
+                            model.duration = d;
+                        }
+                        _ => return Err(unknown(kind, k, IMC_KEYS)),
+                    }
+                }
+                net.validate()
+                    .map_err(|m| Error::Input(format!("controller `{kind}`: {m}")))?;
+                Ok(ControllerSpec::ImcRbf(ImcSpec {
+                    net,
+                    model,
+                    sensitivity,
+                }))
+            }
+            _ => Err(Error::Input(format!(
+                "unknown controller `{kind}`; valid: {}",
+                CONTROLLER_KINDS.join(", ")
+            ))),
+        }
+    }
+
+    /// `pid` or `imc-rbf`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            ControllerSpec::Pid(_) => "pid",
+            ControllerSpec::ImcRbf(_) => "imc-rbf",
+        }
+    }
+}
+
+/// Splits `key=value` items (CLI `--param`), refusing items without `=`.
+pub fn key_values(items: &[String]) -> Result<Vec<(String, String)>> {
+    items
+        .iter()
+        .map(|s| {
+            s.split_once('=')
+                .map(|(k, v)| (k.trim().to_string(), v.trim().to_string()))
+                .ok_or_else(|| Error::Input(format!("--param `{s}`: expected KEY=VALUE")))
+        })
+        .collect()
+}
+
+/// One experiment, fully specified.
+#[derive(Debug, Clone)]
+pub struct RunSpec {
+    pub controller: ControllerSpec,
+    pub reference: Reference,
+    /// Twin overrides of the plant in the loop.
+    pub plant: String,
+    /// Twin overrides the internal model was identified on (None: the plant's).
+    pub model_twin: Option<String>,
+    pub guard: Guard,
+    /// Seconds treated as the transient.
+    pub transient: f64,
+}
+
+impl RunSpec {
+    /// The identification settings of an IMC run (with the twin it is identified on).
+    pub fn model_config(&self) -> Option<ModelFitConfig> {
+        match &self.controller {
+            ControllerSpec::Pid(_) => None,
+            ControllerSpec::ImcRbf(s) => Some(ModelFitConfig {
+                twin: self
+                    .model_twin
+                    .clone()
+                    .unwrap_or_else(|| self.plant.clone()),
+                ..s.model.clone()
+            }),
+        }
+    }
+
+    /// Checks the twin overrides and the transient before anything runs.
+    pub fn validate(&self) -> Result<()> {
+        TwinConfig::parse_overrides(&self.plant)
+            .map_err(|e| Error::Input(format!("plant: {e}")))?;
+        if let Some(m) = &self.model_twin {
+            TwinConfig::parse_overrides(m).map_err(|e| Error::Input(format!("model twin: {e}")))?;
+        }
+        if !(self.transient >= 0.0 && self.transient < self.reference.duration) {
+            return Err(Error::Input(format!(
+                "transient {} s must be in [0, {}) (the reference's duration)",
+                self.transient, self.reference.duration
+            )));
+        }
+        Ok(())
+    }
+
+    /// Runs the loop on the twin with sensor noise from `noise_seed`; `model` is the fitted
+    /// internal model of an IMC run (fit it with [`Self::model_config`]).
+    pub fn execute(&self, model: Option<&FittedModel>, noise_seed: u64) -> Result<Outcome> {
+        let cfg = TwinConfig::parse_overrides(&self.plant)
+            .map_err(|e| Error::Input(format!("plant: {e}")))?;
+        let mut twin = Twin::try_new(&cfg, noise_seed)?;
+        let mut controller = match (&self.controller, model) {
+            (ControllerSpec::Pid(g), _) => Controller::pid(*g),
+            (ControllerSpec::ImcRbf(s), Some(m)) => {
+                let mut model = m.model.clone();
+                model.sensitivity = s.sensitivity;
+                Controller::imc(model, &s.net)
+            }
+            (ControllerSpec::ImcRbf(_), None) => {
+                return Err(Error::Input(
+                    "an imc-rbf run needs its fitted internal model".into(),
+                ));
+            }
+        };
+        let reference = self.reference.sample(DT);
+        let run = run_loop(&mut twin, &mut controller, &reference, DT, &self.guard);
+        Ok(Outcome::new(run, self.transient, model))
+    }
+
+    /// Fits the model (if any) from `model_seed`, then runs with `noise_seed`.
+    pub fn fit_and_execute(&self, model_seed: &TrialSeed, noise_seed: u64) -> Result<Outcome> {
+        let fitted = match self.model_config() {
+            Some(m) => Some(m.fit(model_seed)?),
+            None => None,
+        };
+        self.execute(fitted.as_ref(), noise_seed)
+    }
+}
+
+/// The numbers of one run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Metrics {
+    /// RMS of `e = y_d - y` over the whole run, mm (None: the run failed).
+    pub rmse_mm: Option<f64>,
+    /// Over the samples after the transient.
+    pub rmse_steady_mm: Option<f64>,
+    /// Largest |e| after the transient.
+    pub max_error_steady_mm: Option<f64>,
+    /// RMS of the IMC feedback signal `d̂ = y - y_m`, mm (0 for PID).
+    pub feedback_rms_mm: f64,
+    pub transient_s: f64,
+    pub failure: Option<super::closed_loop::Failure>,
+    /// Free-run RMSE (mm) of the internal model on its identification record.
+    pub model_free_run_rmse_mm: Option<f64>,
+}
+
+/// A run and its metrics.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    pub run: LoopRun,
+    pub metrics: Metrics,
+}
+
+impl Outcome {
+    fn new(run: LoopRun, transient: f64, model: Option<&FittedModel>) -> Outcome {
+        let n = run.feedback.len().max(1) as f64;
+        let metrics = Metrics {
+            rmse_mm: run.rmse(0.0),
+            rmse_steady_mm: run.rmse(transient),
+            max_error_steady_mm: run.max_error(transient),
+            feedback_rms_mm: (run.feedback.iter().map(|v| v * v).sum::<f64>() / n).sqrt(),
+            transient_s: transient,
+            failure: run.failure.clone(),
+            model_free_run_rmse_mm: model.map(|m| m.free_run_rmse),
+        };
+        Outcome { run, metrics }
+    }
+}
