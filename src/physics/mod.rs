@@ -7,10 +7,13 @@
 //!   discretised, each with a one-step API.
 //! - [`rbf`]: the Gaussian RBF network, its NARX model (one-step and free-run) and the
 //!   back-propagation baseline.
+//! - [`structure`]: Bouc-Wen with switchable extensions (delay, lags, saturation, asymmetry,
+//!   rate dependence, creep, a mode, drift): the model family of `optbench diagnose`.
 //! - [`twin`]: the simulated PZBA-00030-like actuator, a switchable chain of the above plus a
 //!   drive amplifier and a sensor.
 
 pub mod bouc_wen;
 pub mod linear;
 pub mod rbf;
+pub mod structure;
 pub mod twin;
