@@ -29,6 +29,9 @@ pub enum Command {
     Fit(FitArgs),
     /// Write piezo-twin recordings: the seed's experiments, or one --signal.
     Simulate(SimulateArgs),
+    /// Locate where a hysteresis model misses a recording, name the missing physics and
+    /// fit the better model (or, with --proof, run the concealed-effect proof).
+    Diagnose(crate::diagnose::cli::DiagnoseArgs),
     /// List objectives and optimizers with their parameters and defaults.
     List,
 }
@@ -181,6 +184,10 @@ fn dispatch(cli: Cli) -> Result<()> {
                 out: a.out,
             };
             print!("{}", crate::simulate::run(&req)?);
+            Ok(())
+        }
+        Command::Diagnose(a) => {
+            print!("{}", crate::diagnose::cli::run(a)?);
             Ok(())
         }
         Command::List => {

@@ -13,6 +13,7 @@
 //! - [`params`]: declarative parameter specifications shared by objectives and optimizers.
 
 pub mod cli;
+pub mod diagnose;
 pub mod error;
 pub mod fitting;
 pub mod harness;

@@ -173,6 +173,7 @@ struct Shape {
     s: f64,
     w: f64,
     n: f64,
+    g0: f64,
     delay: f64,
     lag: f64,
     sat_c: f64,
@@ -208,6 +209,9 @@ impl Structure {
         if fixed_n.is_none() {
             specs.push(spec("n", 0.5, 3.0, 1.0, None));
         }
+        // The hysteretic state at the first sample, as a fraction of its saturation level:
+        // a recording starts with a history the data do not show.
+        specs.push(spec("g0_frac", -1.0, 1.0, 0.0, None));
         for &e in &effects {
             let x = Some(e);
             match e {
@@ -318,6 +322,7 @@ impl Structure {
             s: 10f64.powf(-0.5),
             w: 0.5,
             n: self.fixed_n.unwrap_or(1.0),
+            g0: 0.0,
             delay: 0.0,
             lag: 0.0,
             sat_c: 0.0,
@@ -334,6 +339,7 @@ impl Structure {
                 "log10_s" => sh.s = 10f64.powf(x),
                 "w" => sh.w = x,
                 "n" => sh.n = x,
+                "g0_frac" => sh.g0 = x,
                 "delay_samples" => sh.delay = x,
                 "lag_tau_s" => sh.lag = x,
                 "sat_c" => sh.sat_c = x,
@@ -454,7 +460,7 @@ impl Structure {
             b.settle(0.0);
         }
         let bound = 1e6 * (1.0 + ctx.u_ref) * (1.0 + u.iter().fold(0.0f64, |m, x| m.max(x.abs())));
-        let mut g = 0.0;
+        let mut g = sh.g0.clamp(-1.0, 1.0) * sh.s * ctx.u_ref;
         let mut v_prev = v0;
         for k in 0..n {
             let mut x = u[k];
@@ -565,6 +571,7 @@ impl Structure {
             ("gamma".into(), (1.0 - sh.w) * sigma * scale),
             ("n".into(), sh.n),
             ("d0".into(), coef[1]),
+            ("h0".into(), alpha * sh.g0 * sh.s * self.ctx.u_ref),
         ];
         let dt = self.ctx.dt;
         for &e in &self.effects {
@@ -694,7 +701,7 @@ mod tests {
             // Shape of p: σ = (β'+γ') = (β+γ) α^(n-1) = (s u_ref)^-n.
             let sigma = (p.beta + p.gamma) * p.alpha.powf(n - 1.0);
             let s = sigma.powf(-1.0 / n) / ctx.u_ref;
-            let theta = [s.log10(), p.beta / (p.beta + p.gamma), n];
+            let theta = [s.log10(), p.beta / (p.beta + p.gamma), n, 0.0];
             let fit = st.fit_linear(&theta, &u, &y);
             assert!(fit.cost < 1e-20, "n={n}: {}", fit.cost);
             let named = st.named_params(&theta, &fit.coef);
@@ -718,7 +725,7 @@ mod tests {
         let y: Vec<f64> = u.iter().map(|x| 0.15 * x + 0.001 * x * x).collect();
         let ctx = Context::from_training(&u, dt);
         let plain = Structure::new(&[], Some(1.0), ctx);
-        let theta = [-0.4, 0.6];
+        let theta = [-0.4, 0.6, 0.1];
         let base = plain.fit_linear(&theta, &u, &y);
         let all = Structure::new(&Effect::ALL, Some(1.0), ctx);
         let nested = plain.embed(&theta, &all);
@@ -815,7 +822,7 @@ mod tests {
         let u = sine(2000, 2.0, dt);
         let ctx = Context::from_training(&u, dt);
         let plain = Structure::new(&[], Some(1.0), ctx);
-        let theta = [-0.4, 0.6];
+        let theta = [-0.4, 0.6, 0.0];
         let (y0, _) = plain.simulate(&theta, &[0.15, 0.0, 0.05], &u);
         let y: Vec<f64> = y0
             .iter()
