@@ -17,9 +17,10 @@ pub struct DiagnoseArgs {
     /// Validation recording, a different excitation (CSV), never fitted.
     #[arg(long, required_unless_present = "proof")]
     pub validate: Option<PathBuf>,
-    /// Model family: bouc-wen (n fitted) or bouc-wen-n1 (n = 1).
-    #[arg(long, default_value = "bouc-wen")]
-    pub model: String,
+    /// Model family: bouc-wen (n fitted, kept only if BIC says so) or bouc-wen-n1 (n = 1).
+    /// Default: bouc-wen; bouc-wen-n1 for --proof (the twin's n is 1; ten times faster).
+    #[arg(long)]
+    pub model: Option<String>,
     /// Time, input and output column names.
     #[arg(long, default_value = "t,u,y")]
     pub columns: String,
@@ -76,8 +77,11 @@ fn read(path: &PathBuf, columns: &Columns) -> Result<Recording> {
 
 /// Runs the command; returns the text to print.
 pub fn run(a: DiagnoseArgs) -> Result<String> {
+    let model = a.model.clone().unwrap_or_else(|| {
+        if a.proof { "bouc-wen-n1" } else { "bouc-wen" }.to_string()
+    });
     let opts = Options {
-        model: a.model.clone(),
+        model,
         seed: a.seed,
         effects: effects(&a.effects)?,
         bootstrap: a.bootstrap,

@@ -149,6 +149,8 @@ pub struct Diagnosis {
     pub unit: String,
     pub samples: [usize; 2],
     pub noise_floor: f64,
+    /// How the Bouc-Wen exponent was chosen.
+    pub exponent: String,
     pub baseline: ModelSummary,
     pub located: Vec<Located>,
     pub candidates: Vec<Candidate>,
@@ -374,6 +376,50 @@ pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Resu
         opts.seed,
     );
     let mut evaluations = base_fit.evaluations;
+    // With n free, ask BIC whether n = 1 (the closed-form kernel, ten times faster) is as
+    // good: keep n free only if it improves BIC by the margin.
+    let mut n_choice = match fixed_n {
+        Some(n) => format!("n pinned at {n} by --model {}", opts.model),
+        None => String::new(),
+    };
+    let base_fit = if fixed_n.is_none() {
+        let pinned = Structure::new(&[], Some(1.0), ctx);
+        let start = plain.embed(&base_fit.theta, &pinned);
+        let f1 = fit::fit(
+            &pinned,
+            &d.ut,
+            &d.yt,
+            Some(&start),
+            None,
+            Budget {
+                global: 0,
+                ..opts.baseline_budget
+            },
+            opts.seed,
+        );
+        evaluations += f1.evaluations;
+        let (b_free, b_one) = (bic(&base_fit, d.ut.len()), bic(&f1, d.ut.len()));
+        let n_fit = base_fit.structure.named_params(&base_fit.theta, &base_fit.linear.coef)[4].1;
+        if b_free < b_one - opts.bic_margin {
+            n_choice = format!(
+                "n fitted: {} (BIC {} below n = 1's, margin {})",
+                crate::report::table::sig(n_fit, 4),
+                crate::report::table::sig(b_one - b_free, 3),
+                opts.bic_margin
+            );
+            base_fit
+        } else {
+            n_choice = format!(
+                "n = 1: the fitted n = {} improves BIC by only {} (margin {})",
+                crate::report::table::sig(n_fit, 4),
+                crate::report::table::sig(b_one - b_free, 3),
+                opts.bic_margin
+            );
+            f1
+        }
+    } else {
+        base_fit
+    };
     let base = evaluate(base_fit, &d, opts);
     let boot = bootstrap_scores(&base.fitted, &d, noise.max(1e-300), opts);
     evaluations += (boot.len() as u64) * opts.candidate_budget.polish / 2;
@@ -489,6 +535,7 @@ pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Resu
         unit,
         samples: [train.len(), validate.len()],
         noise_floor: noise,
+        exponent: n_choice,
         baseline,
         located,
         candidates,

@@ -10,7 +10,7 @@
 //! ([`Structure`] with `rate-dependence`) with the twin's noise and quantisation.
 //!
 //! Excitation (D/A commands, V, sampled at 1 ms): training is a slow random-phase multisine
-//! (0.25-3 Hz, 0.8 V RMS about 2.35 V) plus a small fast one (20-120 Hz, 0.04 V RMS), so
+//! (0.25-3 Hz, 0.8 V RMS about 2.35 V) plus a small fast one (20-120 Hz, 0.015 V RMS), so
 //! lag, delay and a mode show in amplitude and phase where they differ; validation is a
 //! different signal, a 0.7 Hz triangle (2.35 ± 2 V) plus a small 15-150 Hz log chirp.
 
@@ -43,8 +43,9 @@ impl CaseKind {
         self.truth.map_or("none", Effect::name)
     }
 
-    /// Twin overrides on top of [`NULL_TWIN`] (empty for the null and rate cases).
-    pub fn overrides(&self) -> String {
+    /// Twin overrides on top of [`NULL_TWIN`] (empty for the null and rate cases);
+    /// `peak_drive` (V) is the largest drive of the case's recordings.
+    pub fn overrides(&self, peak_drive: f64) -> String {
         let x = self.size;
         match self.truth {
             None | Some(Effect::RateDependence) => String::new(),
@@ -57,7 +58,7 @@ impl CaseKind {
                 0.6 * x
             ),
             Some(Effect::Asymmetry) => format!("asymmetry={x}"),
-            Some(Effect::Saturation) => format!("saturation.limit={x}"),
+            Some(Effect::Saturation) => format!("saturation.limit={}", x * peak_drive),
             Some(Effect::OffsetDrift) => format!("drift=on,drift.rate={x}"),
         }
     }
@@ -77,7 +78,9 @@ impl CaseKind {
                 format!("creep {:.1} % (0.5 s) + {:.1} % (20 s)", 40.0 * x, 60.0 * x)
             }
             Some(Effect::Asymmetry) => format!("v + {x} v² on the drive"),
-            Some(Effect::Saturation) => format!("drive clipped at {x} V"),
+            Some(Effect::Saturation) => {
+                format!("drive clipped at {:.0} % of its peak", 100.0 * x)
+            }
             Some(Effect::OffsetDrift) => format!("sensor drift {} µm/s", x * 1e3),
             Some(Effect::RateDependence) => {
                 format!("loop width × (1 + {x} r), r = rate / RMS rate, τ_r = 50 ms")
@@ -93,14 +96,14 @@ pub fn kinds() -> Vec<CaseKind> {
     let k = |truth, size| CaseKind { truth, size };
     vec![
         k(None, 0.0),
-        k(Some(Effect::Dynamics), 600.0),
-        k(Some(Effect::InputLag), 1500.0),
+        k(Some(Effect::Dynamics), 250.0),
+        k(Some(Effect::InputLag), 200.0),
         k(Some(Effect::Delay), 1e-3),
-        k(Some(Effect::Creep), 0.01),
-        k(Some(Effect::Asymmetry), 1e-4),
-        k(Some(Effect::Saturation), 66.0),
-        k(Some(Effect::OffsetDrift), 3e-4),
-        k(Some(Effect::RateDependence), 0.05),
+        k(Some(Effect::Creep), 0.025),
+        k(Some(Effect::Asymmetry), 2.2e-4),
+        k(Some(Effect::Saturation), 0.99),
+        k(Some(Effect::OffsetDrift), 5e-4),
+        k(Some(Effect::RateDependence), 0.035),
     ]
 }
 
@@ -108,12 +111,12 @@ pub fn kinds() -> Vec<CaseKind> {
 pub fn signals(seconds: f64, dt: f64, seed: u64) -> Result<(Vec<f64>, Vec<f64>)> {
     let train = Signal::parse(&format!(
         "multisine:fmin=0.25,fmax=3,period={seconds},rms=0.8,seed={seed},offset=2.35 \
-         + multisine:fmin=20,fmax=120,period=1,rms=0.04,seed={}",
+         + multisine:fmin=20,fmax=120,period=1,rms=0.015,seed={}",
         seed + 1000
     ))?;
     let validate = Signal::parse(&format!(
         "triangle:freq=0.7,amp=2,phase=-1.5707963,offset=2.35 \
-         + chirp:f0=15,f1=150,duration={seconds},law=log,amp=0.05"
+         + chirp:f0=15,f1=150,duration={seconds},law=log,amp=0.015"
     ))?;
     Ok((train.sample(dt, seconds), validate.sample(dt, seconds)))
 }
@@ -159,7 +162,9 @@ pub fn generate(kind: &CaseKind, seed: u64, seconds: f64) -> Result<(Recording, 
         let v = out.pop().expect("two recordings");
         return Ok((out.pop().expect("two recordings"), v));
     }
-    let cfg = TwinConfig::parse_overrides(&format!("{NULL_TWIN},{}", kind.overrides()))?;
+    let gain = TwinConfig::default().amp.gain;
+    let peak = ut.iter().chain(&uv).fold(0.0f64, |m, x| m.max(x.abs())) * gain;
+    let cfg = TwinConfig::parse_overrides(&format!("{NULL_TWIN},{}", kind.overrides(peak)))?;
     let t = twin::recording(&cfg, name("train"), ut, dt, seed.wrapping_mul(2))?;
     let v = twin::recording(&cfg, name("validate"), uv, dt, seed.wrapping_mul(2) + 1)?;
     Ok((t, v))

@@ -28,6 +28,7 @@ pub fn text(d: &Diagnosis) -> String {
         f(d.noise_floor)
     );
     let b = &d.baseline;
+    let _ = writeln!(s, "exponent: {}", d.exponent);
     let _ = writeln!(
         s,
         "baseline {}: train RMSE {}{u}, validation RMSE {}{u} (band {}-{}, {:.1}x the noise floor)",

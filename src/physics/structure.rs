@@ -20,7 +20,9 @@
 //!   saturates at `s u_ref`, i.e. `β'+γ' = (s u_ref)^-n`), `w = β'/(β'+γ')` and `n`.
 //! - `rate-dependence`: `h` scaled by `1 + ρ r`, `r` the drive rate `|v̇|` low-passed
 //!   with `τ_r` over its RMS on the training data: loops widen with rate.
-//! - `creep`: Kelvin-Voigt term `D + g_c lag(τ_c) D`.
+//! - `creep`: a two-element Kelvin-Voigt chain `D + g₁ lag(τ₁) D + g₂ lag(τ₂) D`, one fast
+//!   element (τ₁ from 10 samples to a quarter of the record) and one slow (τ₂ from a
+//!   quarter of the record to ten records), as a piezo creeps on both scales.
 //! - `dynamics`: second-order mode `ÿ + 2ζω ẏ + ω² y = ω² x` after the hysteresis,
 //!   parametrised by `p = 1/ω` (s; `p = 0` passes `x` through) and `ζ`.
 //! - `offset-drift`: `y += a1 t/T + a2 (t/T)²` (T the training duration), two more
@@ -182,6 +184,8 @@ struct Shape {
     tau_r: f64,
     creep_g: f64,
     creep_tau: f64,
+    creep_g2: f64,
+    creep_tau2: f64,
     mode_p: f64,
     zeta: f64,
 }
@@ -216,23 +220,31 @@ impl Structure {
             let x = Some(e);
             match e {
                 Effect::Delay => specs.push(spec("delay_samples", 0.0, 10.0, 0.0, x)),
-                Effect::InputLag => specs.push(spec("lag_tau_s", 0.0, 20.0 * dt, 0.0, x)),
+                Effect::InputLag => {
+                    // Log scale; the lower end (τ = dt/100) is a wire.
+                    let lo = (0.01 * dt).log10();
+                    specs.push(spec("lag_log10_tau_s", lo, (20.0 * dt).log10(), lo, x))
+                }
                 Effect::Saturation => specs.push(spec("sat_c", 0.0, 2.0, 0.0, x)),
-                Effect::Asymmetry => specs.push(spec("asym_q", -0.5, 0.5, 0.0, x)),
+                Effect::Asymmetry => specs.push(spec("asym_q", -0.3, 0.3, 0.0, x)),
                 Effect::RateDependence => {
                     specs.push(spec("rate_rho", 0.0, 2.0, 0.0, x));
                     let (lo, hi) = ((2.0 * dt).log10(), (0.5 * t).max(4.0 * dt).log10());
                     specs.push(spec("rate_log10_tau_s", lo, hi, 0.5 * (lo + hi), x));
                 }
                 Effect::Creep => {
-                    specs.push(spec("creep_g", 0.0, 0.5, 0.0, x));
-                    let (lo, hi) = ((10.0 * dt).log10(), (2.0 * t).max(20.0 * dt).log10());
-                    specs.push(spec("creep_log10_tau_s", lo, hi, 0.5 * (lo + hi), x));
+                    let mid = (0.25 * t).max(20.0 * dt).log10();
+                    let (lo, hi) = ((10.0 * dt).log10(), (10.0 * t).max(40.0 * dt).log10());
+                    specs.push(spec("creep_g", 0.0, 0.2, 0.0, x));
+                    specs.push(spec("creep_log10_tau_s", lo, mid, 0.5 * (lo + mid), x));
+                    specs.push(spec("creep_g2", 0.0, 0.2, 0.0, x));
+                    specs.push(spec("creep_log10_tau2_s", mid, hi, 0.5 * (mid + hi), x));
                 }
                 Effect::Dynamics => {
-                    // Modes from about fs/200 to beyond Nyquist; p = 1/ω.
-                    let p_max = 1.0 / (2.0 * std::f64::consts::PI * (0.005 / dt));
-                    specs.push(spec("mode_p_s", 0.0, p_max, 0.0, x));
+                    // Modes from fs/200 to Nyquist on a log scale (above it a mode aliases);
+                    // the upper end itself is a wire (no mode).
+                    let hi = (0.5 / dt).log10();
+                    specs.push(spec("mode_log10_hz", (0.005 / dt).log10(), hi, hi, x));
                     specs.push(spec("mode_zeta", 0.005, 1.5, 0.3, x));
                 }
                 Effect::OffsetDrift => {}
@@ -331,6 +343,8 @@ impl Structure {
             tau_r: 1.0,
             creep_g: 0.0,
             creep_tau: 1.0,
+            creep_g2: 0.0,
+            creep_tau2: 1.0,
             mode_p: 0.0,
             zeta: 0.3,
         };
@@ -341,14 +355,29 @@ impl Structure {
                 "n" => sh.n = x,
                 "g0_frac" => sh.g0 = x,
                 "delay_samples" => sh.delay = x,
-                "lag_tau_s" => sh.lag = x,
+                "lag_log10_tau_s" => {
+                    // The bottom of the range is no lag at all.
+                    sh.lag = if x <= spec.lower + 1e-9 {
+                        0.0
+                    } else {
+                        10f64.powf(x)
+                    }
+                }
                 "sat_c" => sh.sat_c = x,
                 "asym_q" => sh.q = x,
                 "rate_rho" => sh.rho = x,
                 "rate_log10_tau_s" => sh.tau_r = 10f64.powf(x),
                 "creep_g" => sh.creep_g = x,
                 "creep_log10_tau_s" => sh.creep_tau = 10f64.powf(x),
-                "mode_p_s" => sh.mode_p = x,
+                "creep_g2" => sh.creep_g2 = x,
+                "creep_log10_tau2_s" => sh.creep_tau2 = 10f64.powf(x),
+                "mode_log10_hz" => {
+                    sh.mode_p = if x >= spec.upper - 1e-9 {
+                        0.0
+                    } else {
+                        1.0 / (2.0 * std::f64::consts::PI * 10f64.powf(x))
+                    }
+                }
                 "mode_zeta" => sh.zeta = x,
                 _ => {}
             }
@@ -394,6 +423,8 @@ impl Structure {
             sh.tau_r,
             sh.creep_g,
             sh.creep_tau,
+            sh.creep_g2,
+            sh.creep_tau2,
             sh.mode_p,
             sh.zeta,
         ]
@@ -420,14 +451,22 @@ impl Structure {
             Some(t) => l.with_exp_hold(t),
             None => l,
         };
-        let mut creep = (self.has(Effect::Creep) && sh.creep_g != 0.0).then(|| {
-            (
-                with_hold_lp(LowPass::new(sh.creep_tau, dt)),
-                with_hold_lp(LowPass::new(sh.creep_tau, dt)),
-            )
-        });
-        // p below 1e-3 dt: the mode is far beyond any frequency the data resolve.
-        let mut mode = (self.has(Effect::Dynamics) && sh.mode_p > 1e-3 * dt).then(|| {
+        let mut creep: Vec<(f64, LowPass, LowPass)> = if self.has(Effect::Creep) {
+            [(sh.creep_g, sh.creep_tau), (sh.creep_g2, sh.creep_tau2)]
+                .into_iter()
+                .filter(|(g, _)| *g != 0.0)
+                .map(|(g, tau)| {
+                    (
+                        g,
+                        with_hold_lp(LowPass::new(tau, dt)),
+                        with_hold_lp(LowPass::new(tau, dt)),
+                    )
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let mut mode = (self.has(Effect::Dynamics) && sh.mode_p > 0.0).then(|| {
             let f = 1.0 / (2.0 * std::f64::consts::PI * sh.mode_p);
             let mk = || {
                 let m = Mode::new(f, sh.zeta.max(0.0), dt);
@@ -451,7 +490,7 @@ impl Structure {
         if let Some(r) = &mut rate {
             r.settle(0.0);
         }
-        if let Some((a, b)) = &mut creep {
+        for (_, a, b) in &mut creep {
             a.settle(v0);
             b.settle(0.0);
         }
@@ -479,14 +518,15 @@ impl Structure {
             }
             v_prev = v;
             let (mut a, mut b) = (v, -hv);
-            if let Some((ca, cb)) = &mut creep {
+            let (a0, b0) = (a, b);
+            for (gain, ca, cb) in &mut creep {
                 let (la, lb) = if exp_tau.is_some() {
-                    (ca.step_exp(a), cb.step_exp(b))
+                    (ca.step_exp(a0), cb.step_exp(b0))
                 } else {
-                    (ca.step(a), cb.step(b))
+                    (ca.step(a0), cb.step(b0))
                 };
-                a += sh.creep_g * la;
-                b += sh.creep_g * lb;
+                a += *gain * la;
+                b += *gain * lb;
             }
             if let Some((ma, mb)) = &mut mode {
                 if exp_tau.is_some() {
@@ -596,6 +636,8 @@ impl Structure {
                 Effect::Creep => {
                     v.push(("creep_gain".into(), sh.creep_g));
                     v.push(("creep_tau_s".into(), sh.creep_tau));
+                    v.push(("creep_gain_slow".into(), sh.creep_g2));
+                    v.push(("creep_tau_slow_s".into(), sh.creep_tau2));
                 }
                 Effect::Dynamics => {
                     let f = if sh.mode_p > 0.0 {
@@ -767,7 +809,10 @@ mod tests {
             (
                 "amp=on,amp.cutoff_hz=500",
                 vec![Effect::InputLag],
-                vec![("lag_tau_s", 1.0 / (2.0 * std::f64::consts::PI * 500.0))],
+                vec![(
+                    "lag_log10_tau_s",
+                    (1.0 / (2.0 * std::f64::consts::PI * 500.0)).log10(),
+                )],
             ),
             (
                 "delay=0.002",
@@ -788,14 +833,19 @@ mod tests {
                 "mode=on,mode.freq_hz=150",
                 vec![Effect::Dynamics],
                 vec![
-                    ("mode_p_s", 1.0 / (2.0 * std::f64::consts::PI * 150.0)),
+                    ("mode_log10_hz", 150f64.log10()),
                     ("mode_zeta", 0.04),
                 ],
             ),
             (
-                "creep=on,creep.gain_slow=0,creep.tau_fast=0.3,creep.gain_fast=0.05",
+                "creep=on,creep.gain_slow=0.03,creep.tau_fast=0.3,creep.gain_fast=0.05",
                 vec![Effect::Creep],
-                vec![("creep_g", 0.05), ("creep_log10_tau_s", 0.3f64.log10())],
+                vec![
+                    ("creep_g", 0.05),
+                    ("creep_log10_tau_s", 0.3f64.log10()),
+                    ("creep_g2", 0.03),
+                    ("creep_log10_tau2_s", 20f64.log10()),
+                ],
             ),
         ];
         for (ov, effects, values) in cases {
