@@ -29,6 +29,9 @@ pub enum Command {
     Fit(FitArgs),
     /// Write piezo-twin recordings: the seed's experiments, or one --signal.
     Simulate(SimulateArgs),
+    /// Locate where a hysteresis model misses a recording, name the missing physics and
+    /// fit the better model (or, with --proof, run the concealed-effect proof).
+    Diagnose(crate::diagnose::cli::DiagnoseArgs),
     /// List objectives and optimizers with their parameters and defaults.
     List,
     /// Measure evaluation speed on this machine: scalar, batched and all-thread paths of
@@ -283,6 +286,10 @@ fn dispatch(cli: Cli) -> Result<()> {
             );
             Ok(())
         }
+        Command::Diagnose(a) => {
+            print!("{}", crate::diagnose::cli::run(a)?);
+            Ok(())
+        }
         Command::List => {
             print!("{}", list());
             Ok(())
@@ -297,7 +304,7 @@ fn dispatch(cli: Cli) -> Result<()> {
                 Some(t) => rayon::ThreadPoolBuilder::new()
                     .num_threads(t as usize)
                     .build()
-                    .map_err(|e| Error::Input(format!("thread pool: {e}")))?
+                    .map_err(|e| crate::Error::Input(format!("thread pool: {e}")))?
                     .install(|| crate::speed::run(&cfg)),
                 None => crate::speed::run(&cfg),
             };

@@ -16,6 +16,7 @@
 
 pub mod cli;
 pub mod control;
+pub mod diagnose;
 pub mod error;
 pub mod fitting;
 pub mod harness;

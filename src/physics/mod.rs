@@ -7,6 +7,8 @@
 //!   discretised, each with a one-step API.
 //! - [`rbf`]: the Gaussian RBF network, its NARX model (one-step and free-run) and the
 //!   back-propagation baseline.
+//! - [`structure`]: Bouc-Wen with switchable extensions (delay, lags, saturation, asymmetry,
+//!   rate dependence, creep, a mode, drift): the model family of `optbench diagnose`.
 //! - [`twin`]: the simulated PZBA-00030-like actuator, a switchable chain of the above plus a
 //!   drive amplifier and a sensor.
 
@@ -16,4 +18,5 @@ pub mod fastmath;
 pub mod linear;
 pub mod rbf;
 pub mod rbf_fast;
+pub mod structure;
 pub mod twin;

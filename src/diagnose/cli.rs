@@ -1,0 +1,146 @@
+//! The `optbench diagnose` arguments and their dispatch (kept here so `src/cli.rs` only
+//! names the subcommand).
+
+use super::{Options, diagnose, proof, report};
+use crate::error::{Error, Result};
+use crate::objective::source::resolve_path;
+use crate::physics::structure::Effect;
+use crate::recording::{Columns, ReadOptions, Recording};
+use crate::results::atomic_write;
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct DiagnoseArgs {
+    /// Training recording (CSV with a header).
+    #[arg(long, required_unless_present = "proof")]
+    pub train: Option<PathBuf>,
+    /// Validation recording, a different excitation (CSV), never fitted.
+    #[arg(long, required_unless_present = "proof")]
+    pub validate: Option<PathBuf>,
+    /// Model family: bouc-wen (n fitted, kept only if BIC says so) or bouc-wen-n1 (n = 1).
+    /// Default: bouc-wen; bouc-wen-n1 for --proof (the twin's n is 1; ten times faster).
+    #[arg(long)]
+    pub model: Option<String>,
+    /// Time, input and output column names.
+    #[arg(long, default_value = "t,u,y")]
+    pub columns: String,
+    /// Output folder (default: results/diagnose, or results/diagnose-proof with --proof).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Candidate effects, comma-separated (default: all eight).
+    #[arg(long)]
+    pub effects: Option<String>,
+    /// Bootstrap refits calibrating the residual tests.
+    #[arg(long, default_value_t = 19)]
+    pub bootstrap: usize,
+    /// Run the concealed-effect proof on the twin instead of diagnosing files.
+    #[arg(long)]
+    pub proof: bool,
+    /// Noise seeds per case of the proof.
+    #[arg(long, default_value_t = 3)]
+    pub seeds: u64,
+    /// Proof cases, comma-separated effect names and `none` (default: all nine).
+    #[arg(long)]
+    pub cases: Option<String>,
+    /// Keep every proof case's diagnosis (JSON, text, figures) in OUT/<case>-seed<k>/.
+    #[arg(long)]
+    pub keep: bool,
+    /// Seconds per recording of the proof.
+    #[arg(long, default_value_t = 4.0)]
+    pub seconds: f64,
+}
+
+fn effects(spec: &Option<String>) -> Result<Vec<Effect>> {
+    let Some(s) = spec else {
+        return Ok(Effect::ALL.to_vec());
+    };
+    s.split(',')
+        .map(str::trim)
+        .filter(|x| !x.is_empty())
+        .map(|x| {
+            Effect::parse(x).ok_or_else(|| {
+                Error::Input(format!(
+                    "--effects: unknown effect `{x}`; valid: {}",
+                    Effect::ALL.map(Effect::name).join(", ")
+                ))
+            })
+        })
+        .collect()
+}
+
+fn read(path: &PathBuf, columns: &Columns) -> Result<Recording> {
+    let p = resolve_path(&path.to_string_lossy(), std::path::Path::new("."));
+    Recording::read_csv(&p, columns, &ReadOptions::default())
+}
+
+/// Runs the command; returns the text to print.
+pub fn run(a: DiagnoseArgs) -> Result<String> {
+    let model = a.model.clone().unwrap_or_else(|| {
+        if a.proof { "bouc-wen-n1" } else { "bouc-wen" }.to_string()
+    });
+    let opts = Options {
+        model,
+        seed: a.seed,
+        effects: effects(&a.effects)?,
+        bootstrap: a.bootstrap,
+        ..Options::default()
+    };
+    opts.fixed_n()?;
+    if a.proof {
+        if !(a.seconds >= 1.0 && a.seconds <= 600.0) {
+            return Err(Error::Input(format!(
+                "--seconds {}: expected 1 to 600",
+                a.seconds
+            )));
+        }
+        let out = a
+            .out
+            .unwrap_or_else(|| PathBuf::from("results/diagnose-proof"));
+        let seeds: Vec<u64> = (1..=a.seeds).collect();
+        let mut kinds = proof::kinds();
+        if let Some(c) = &a.cases {
+            let want: Vec<&str> = c.split(',').map(str::trim).collect();
+            if let Some(bad) = want.iter().find(|w| !kinds.iter().any(|k| k.name() == **w)) {
+                return Err(Error::Input(format!(
+                    "--cases: unknown case `{bad}`; valid: none, {}",
+                    Effect::ALL.map(Effect::name).join(", ")
+                )));
+            }
+            kinds.retain(|k| want.contains(&k.name()));
+        }
+        let (p, diagnoses) = proof::run(&kinds, &seeds, a.seconds, &opts)?;
+        std::fs::create_dir_all(&out)
+            .map_err(|e| Error::io(format!("creating {}", out.display()), e))?;
+        if a.keep {
+            for (label, d) in &diagnoses {
+                report::write(d, &out.join(label))?;
+                atomic_write(
+                    &out.join(label).join("report.txt"),
+                    report::text(d).as_bytes(),
+                )?;
+            }
+        }
+        let md = proof::markdown(&p);
+        atomic_write(&out.join("proof.md"), md.as_bytes())?;
+        let mut json = serde_json::to_vec_pretty(&p).expect("serialisable");
+        json.push(b'\n');
+        atomic_write(&out.join("proof.json"), &json)?;
+        return Ok(format!("{md}\nwritten: {}\n", out.display()));
+    }
+    let columns = Columns::parse(&a.columns)?;
+    let (Some(t), Some(v)) = (&a.train, &a.validate) else {
+        return Err(Error::Input("--train and --validate are required".into()));
+    };
+    let train = read(t, &columns)?;
+    let validate = read(v, &columns)?;
+    let d = diagnose(&train, &validate, &opts)?;
+    let out = a.out.unwrap_or_else(|| PathBuf::from("results/diagnose"));
+    report::write(&d, &out)?;
+    Ok(format!(
+        "{}\ndiagnosis.json and figures: {}\n",
+        report::text(&d),
+        out.display()
+    ))
+}

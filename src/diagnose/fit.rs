@@ -1,0 +1,321 @@
+//! Fitting a [`Structure`] with the harness's optimizers: the shape parameters are searched
+//! (PSO, then a Nelder-Mead polish, each a trial of [`run_trial`] so every evaluation is
+//! counted by the [`crate::harness::Evaluator`]); the linear coefficients are solved by
+//! least squares inside each evaluation.
+
+use crate::harness::{TrialSeed, TrialSpec, run_trial};
+use crate::objective::{Bounds, Objective};
+use crate::optimizer::nelder_mead::NelderMead;
+use crate::optimizer::pso::PsoConfig;
+use crate::optimizer::{Optimizer, OptimizerConfig};
+use crate::physics::structure::{LinearFit, Structure};
+use std::sync::Arc;
+
+/// The training cost of a structure's shape: `Σ e²/2` with the best linear coefficients.
+pub struct StructureObjective {
+    st: Structure,
+    u: Arc<Vec<f64>>,
+    y: Arc<Vec<f64>>,
+    bounds: Bounds,
+}
+
+impl StructureObjective {
+    /// The objective of `st` on `(u, y)`.
+    pub fn new(st: Structure, u: Arc<Vec<f64>>, y: Arc<Vec<f64>>) -> Self {
+        let bounds = Bounds::new(
+            st.specs().iter().map(|s| s.lower).collect(),
+            st.specs().iter().map(|s| s.upper).collect(),
+        )
+        .expect("structure bounds are valid");
+        StructureObjective { st, u, y, bounds }
+    }
+}
+
+impl Objective for StructureObjective {
+    fn name(&self) -> &str {
+        "structure"
+    }
+
+    fn bounds(&self) -> &Bounds {
+        &self.bounds
+    }
+
+    fn evaluate(&self, x: &[f64]) -> f64 {
+        self.st.fit_linear(x, &self.u, &self.y).cost
+    }
+}
+
+/// An objective restricted to some coordinates, the others held at `base`.
+struct Restricted {
+    inner: Arc<StructureObjective>,
+    free: Vec<usize>,
+    base: Vec<f64>,
+    bounds: Bounds,
+}
+
+impl Objective for Restricted {
+    fn name(&self) -> &str {
+        "structure (restricted)"
+    }
+
+    fn bounds(&self) -> &Bounds {
+        &self.bounds
+    }
+
+    fn evaluate(&self, x: &[f64]) -> f64 {
+        let mut full = self.base.clone();
+        for (&i, &v) in self.free.iter().zip(x) {
+            full[i] = v;
+        }
+        self.inner.evaluate(&full)
+    }
+}
+
+/// A global optimizer whose first evaluations are given points (so a nested start is never
+/// lost), then the optimizer itself.
+#[derive(Debug)]
+struct Seeded {
+    points: Vec<Vec<f64>>,
+    inner: PsoConfig,
+}
+
+struct SeededRun {
+    points: Vec<Vec<f64>>,
+    inner: Box<dyn Optimizer>,
+}
+
+impl OptimizerConfig for Seeded {
+    fn batch_size(&self) -> usize {
+        self.inner.batch_size()
+    }
+
+    fn start(&self, bounds: &Bounds, budget: u64, seed: &TrialSeed) -> Box<dyn Optimizer> {
+        let k = self.points.len() as u64;
+        Box::new(SeededRun {
+            points: self.points.clone(),
+            inner: self.inner.start(bounds, budget.saturating_sub(k), seed),
+        })
+    }
+}
+
+impl Optimizer for SeededRun {
+    fn step(&mut self, ev: &mut crate::harness::Evaluator) {
+        if self.points.is_empty() {
+            self.inner.step(ev);
+        } else {
+            let flat: Vec<f64> = self.points.drain(..).flatten().collect();
+            let mut out = vec![0.0; flat.len() / ev.dim()];
+            ev.evaluate_batch(&flat, &mut out);
+        }
+    }
+}
+
+/// Nelder-Mead from a given point.
+#[derive(Debug)]
+struct PolishFrom {
+    x0: Vec<f64>,
+    step: f64,
+}
+
+impl OptimizerConfig for PolishFrom {
+    fn batch_size(&self) -> usize {
+        1
+    }
+
+    fn start(&self, bounds: &Bounds, _budget: u64, _seed: &TrialSeed) -> Box<dyn Optimizer> {
+        Box::new(NelderMead::new(
+            bounds.clone(),
+            self.step,
+            Some(self.x0.clone()),
+        ))
+    }
+}
+
+/// Evaluation budgets of one fit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Budget {
+    /// PSO evaluations (0: no global stage).
+    pub global: u64,
+    /// PSO swarm size.
+    pub swarm: usize,
+    /// Nelder-Mead evaluations per polish round.
+    pub polish: u64,
+    /// Polish rounds (each restarts the simplex at a smaller step).
+    pub rounds: usize,
+}
+
+/// A fitted structure.
+#[derive(Clone, Debug)]
+pub struct Fitted {
+    pub structure: Structure,
+    pub theta: Vec<f64>,
+    pub linear: LinearFit,
+    /// Evaluations spent.
+    pub evaluations: u64,
+}
+
+impl Fitted {
+    /// Training RMSE (same units as y).
+    pub fn rmse(&self, samples: usize) -> f64 {
+        (2.0 * self.linear.cost / samples.max(1) as f64).sqrt()
+    }
+}
+
+/// Fits `st` on `(u, y)`: a PSO over the coordinates `free` (all when `None`) with the
+/// others at `start` (or neutral), seeded with `start`, then Nelder-Mead over all
+/// coordinates from the best point. Seeds derive from `(seed, label, stage)`.
+pub fn fit(
+    st: &Structure,
+    u: &Arc<Vec<f64>>,
+    y: &Arc<Vec<f64>>,
+    start: Option<&[f64]>,
+    free: Option<&[usize]>,
+    budget: Budget,
+    seed: u64,
+) -> Fitted {
+    let obj = Arc::new(StructureObjective::new(st.clone(), u.clone(), y.clone()));
+    let neutral: Vec<f64> = st.specs().iter().map(|s| s.neutral).collect();
+    let mut best = start.map_or(neutral, <[f64]>::to_vec);
+    let label = st.label();
+    let mut evaluations = 0;
+    let all: Vec<usize> = (0..best.len()).collect();
+    let free = free.unwrap_or(&all).to_vec();
+    if budget.global > 0 && !free.is_empty() {
+        let bounds = Bounds::new(
+            free.iter().map(|&i| obj.bounds().lower()[i]).collect(),
+            free.iter().map(|&i| obj.bounds().upper()[i]).collect(),
+        )
+        .expect("valid bounds");
+        let restricted: Arc<dyn Objective> = Arc::new(Restricted {
+            inner: obj.clone(),
+            free: free.clone(),
+            base: best.clone(),
+            bounds,
+        });
+        let seeded = Seeded {
+            points: vec![free.iter().map(|&i| best[i]).collect()],
+            inner: PsoConfig {
+                swarm: budget.swarm,
+                ..PsoConfig::default()
+            },
+        };
+        let rec = run_trial(TrialSpec {
+            objective_id: &label,
+            optimizer_id: "pso",
+            trial: 0,
+            objective: restricted,
+            optimizer: &seeded,
+            budget: budget.global,
+            stop_value: None,
+            seed: TrialSeed::derive(seed, &label, "pso", 0),
+        });
+        evaluations += rec.evaluations;
+        for (&i, &v) in free.iter().zip(&rec.best_x) {
+            best[i] = v;
+        }
+    }
+    if !best.is_empty() {
+        let mut step = 0.05;
+        for round in 0..budget.rounds {
+            let rec = run_trial(TrialSpec {
+                objective_id: &label,
+                optimizer_id: "nelder-mead",
+                trial: round,
+                objective: obj.clone(),
+                optimizer: &PolishFrom {
+                    x0: best.clone(),
+                    step,
+                },
+                budget: budget.polish,
+                stop_value: None,
+                seed: TrialSeed::derive(seed, &label, "nelder-mead", round as u64),
+            });
+            evaluations += rec.evaluations;
+            // The simplex starts at `best`, so its best is never worse.
+            best = rec.best_x;
+            step *= 0.3;
+        }
+    }
+    let linear = st.fit_linear(&best, u, y);
+    Fitted {
+        structure: st.clone(),
+        theta: best,
+        linear,
+        evaluations,
+    }
+}
+
+/// Validation SSE/2 of a fitted model as a function of its initial hysteretic state only
+/// (the validation recording starts with a history of its own; everything else is held).
+struct InitialState {
+    st: Structure,
+    theta: Vec<f64>,
+    coef: Vec<f64>,
+    index: usize,
+    u: Vec<f64>,
+    y: Vec<f64>,
+    bounds: Bounds,
+}
+
+impl Objective for InitialState {
+    fn name(&self) -> &str {
+        "initial state"
+    }
+
+    fn bounds(&self) -> &Bounds {
+        &self.bounds
+    }
+
+    fn evaluate(&self, x: &[f64]) -> f64 {
+        let mut th = self.theta.clone();
+        th[self.index] = x[0];
+        let (out, _) = self.st.simulate(&th, &self.coef, &self.u);
+        let j: f64 = out
+            .iter()
+            .zip(&self.y)
+            .map(|(m, t)| 0.5 * (t - m) * (t - m))
+            .sum();
+        if j.is_finite() { j } else { f64::MAX / 4.0 }
+    }
+}
+
+/// The shape vector of `f` with the initial state (`g0_frac`) fitted to another recording
+/// `(u, y)`, by Nelder-Mead through the harness (`budget` evaluations), and the evaluations.
+pub fn initial_state_for(
+    f: &Fitted,
+    u: &[f64],
+    y: &[f64],
+    budget: u64,
+    seed: u64,
+) -> (Vec<f64>, u64) {
+    let Some(index) = f.structure.specs().iter().position(|s| s.name == "g0_frac") else {
+        return (f.theta.clone(), 0);
+    };
+    let spec = &f.structure.specs()[index];
+    let obj: Arc<dyn Objective> = Arc::new(InitialState {
+        st: f.structure.clone(),
+        theta: f.theta.clone(),
+        coef: f.linear.coef.clone(),
+        index,
+        u: u.to_vec(),
+        y: y.to_vec(),
+        bounds: Bounds::new(vec![spec.lower], vec![spec.upper]).expect("valid bounds"),
+    });
+    let label = format!("{} initial state", f.structure.label());
+    let rec = run_trial(TrialSpec {
+        objective_id: &label,
+        optimizer_id: "nelder-mead",
+        trial: 0,
+        objective: obj,
+        optimizer: &PolishFrom {
+            x0: vec![0.0],
+            step: 0.1,
+        },
+        budget,
+        stop_value: None,
+        seed: TrialSeed::derive(seed, &label, "nelder-mead", 0),
+    });
+    let mut th = f.theta.clone();
+    th[index] = rec.best_x[0];
+    (th, rec.evaluations)
+}

@@ -1,0 +1,552 @@
+//! `optbench diagnose`: where a hysteresis model misses a recording, which physics it left
+//! out, and the better model, with evidence.
+//!
+//! 1. **Baseline.** The plain Bouc-Wen model ([`Structure`] without extensions) is fitted to
+//!    the training recording: PSO over the loop shape, then Nelder-Mead polish, through the
+//!    harness (evaluations counted by the evaluator), linear coefficients by least squares.
+//! 2. **Noise floor** from the data alone ([`residual::noise_floor`]).
+//! 3. **Locate** the validation residual in time, in the loop plane and in frequency
+//!    ([`residual::locate`]).
+//! 4. **Test** the validation residual (Ljung-Box, prewhitened input cross-correlation,
+//!    Billings' higher-order correlations; [`residual::battery`]). The battery's score is
+//!    calibrated by a parametric bootstrap of the fitted baseline (simulated output plus
+//!    Gaussian noise at the noise floor, refitted): its p-value is the share of bootstrap
+//!    scores at least as large, so the false-alarm rate of "structure left" is known.
+//! 5. **Name** by nested refits: each extension not yet in the model is added at its
+//!    neutral value (the parent model exactly) and refitted (PSO over its own parameters,
+//!    then Nelder-Mead over all). A candidate is accepted only if BIC on the training data
+//!    improves by more than [`Options::bic_margin`], its validation RMSE falls below the
+//!    parent's 95 % band (moving-block bootstrap of the parent's validation residual), and
+//!    the residual battery's score falls. The best such candidate (lowest ΔBIC) is added and
+//!    the round repeats from the new model until nothing more is accepted. Effects that
+//!    mimic each other (delay, input-lag, dynamics; creep, offset-drift) compete in the
+//!    same round, so the nested comparison, not the screen, decides.
+
+pub mod cli;
+pub mod fit;
+pub mod proof;
+pub mod report;
+pub mod residual;
+
+use crate::error::{Error, Result};
+use crate::harness::TrialSeed;
+use crate::optimizer::operators::standard_normal;
+use crate::physics::structure::{Context, Effect, Structure};
+use crate::recording::Recording;
+use fit::{Budget, Fitted};
+use rand::RngExt;
+use rayon::prelude::*;
+use residual::{Located, TestResult};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+/// What the diagnosis does; the defaults are what `optbench diagnose` runs.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Model family: `bouc-wen` (n fitted) or `bouc-wen-n1` (n = 1).
+    pub model: String,
+    pub seed: u64,
+    /// Extensions tried as candidates.
+    pub effects: Vec<Effect>,
+    /// Bootstrap replicates calibrating the residual battery.
+    pub bootstrap: usize,
+    /// Required BIC improvement (natural-log units) for a candidate.
+    pub bic_margin: f64,
+    /// Family level of the residual battery.
+    pub alpha: f64,
+    /// Lags of the residual tests.
+    pub lags: usize,
+    /// Budgets of the baseline fit and of each candidate refit.
+    pub baseline_budget: Budget,
+    pub candidate_budget: Budget,
+    /// At most this many extensions are accepted.
+    pub max_rounds: usize,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            model: "bouc-wen".into(),
+            seed: 1,
+            effects: Effect::ALL.to_vec(),
+            bootstrap: 19,
+            bic_margin: 10.0,
+            alpha: 0.01,
+            lags: 20,
+            baseline_budget: Budget {
+                global: 1500,
+                swarm: 30,
+                polish: 800,
+                rounds: 3,
+            },
+            candidate_budget: Budget {
+                global: 300,
+                swarm: 15,
+                polish: 700,
+                rounds: 2,
+            },
+            max_rounds: 4,
+        }
+    }
+}
+
+impl Options {
+    /// The exponent the model pins, or an error for an unknown model.
+    fn fixed_n(&self) -> Result<Option<f64>> {
+        match self.model.as_str() {
+            "bouc-wen" => Ok(None),
+            "bouc-wen-n1" => Ok(Some(1.0)),
+            m => Err(Error::Input(format!(
+                "--model {m}: unknown; valid: bouc-wen, bouc-wen-n1"
+            ))),
+        }
+    }
+}
+
+/// A model's numbers in the report.
+#[derive(Clone, Debug, Serialize)]
+pub struct ModelSummary {
+    pub model: String,
+    pub train_rmse: f64,
+    pub validate_rmse: f64,
+    /// 95 % band of the validation RMSE (moving-block bootstrap).
+    pub validate_band: [f64; 2],
+    pub bic: f64,
+    pub params: BTreeMap<String, f64>,
+    /// Residual battery on the validation data.
+    pub tests: Vec<TestResult>,
+    /// Largest statistic / critical value of the battery.
+    pub score: f64,
+    /// Bootstrap p-value of the score under the fitted baseline (structure left if small).
+    pub p_value: f64,
+    pub evaluations: u64,
+}
+
+/// One nested refit.
+#[derive(Clone, Debug, Serialize)]
+pub struct Candidate {
+    pub name: String,
+    /// Round (1 = added to the baseline).
+    pub round: usize,
+    /// The model it extends.
+    pub parent: String,
+    pub delta_bic: f64,
+    pub train_rmse: f64,
+    pub validate_rmse: f64,
+    pub score: f64,
+    pub accepted: bool,
+    pub params: BTreeMap<String, f64>,
+    pub evidence: String,
+}
+
+/// The diagnosis (`diagnosis.json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct Diagnosis {
+    pub model: String,
+    pub train: String,
+    pub validate: String,
+    pub unit: String,
+    pub samples: [usize; 2],
+    pub noise_floor: f64,
+    /// How the Bouc-Wen exponent was chosen.
+    pub exponent: String,
+    pub baseline: ModelSummary,
+    pub located: Vec<Located>,
+    pub candidates: Vec<Candidate>,
+    pub left_out: Vec<String>,
+    #[serde(rename = "final")]
+    pub final_model: ModelSummary,
+    /// Structure left in the final residual that no candidate explains.
+    pub unexplained: bool,
+    /// Bootstrap scores of the battery under the fitted baseline, sorted.
+    pub bootstrap_scores: Vec<f64>,
+    pub seed: u64,
+    pub evaluations: u64,
+    pub wall_s: f64,
+    /// Series for the figures (not serialised).
+    #[serde(skip)]
+    pub series: Series,
+}
+
+/// Model outputs kept for the figures.
+#[derive(Clone, Debug, Default)]
+pub struct Series {
+    pub t: [Vec<f64>; 2],
+    pub u: [Vec<f64>; 2],
+    pub y: [Vec<f64>; 2],
+    /// Baseline and final outputs on training (0) and validation (1) data.
+    pub baseline: [Vec<f64>; 2],
+    pub final_model: [Vec<f64>; 2],
+    pub dt: f64,
+    pub final_label: String,
+}
+
+/// Training and validation data in the form the fits use.
+struct Data {
+    ut: Arc<Vec<f64>>,
+    yt: Arc<Vec<f64>>,
+    uv: Vec<f64>,
+    yv: Vec<f64>,
+}
+
+/// BIC `N ln(SSE/N) + k ln N` of a training fit.
+fn bic(f: &Fitted, n: usize) -> f64 {
+    let sse = (2.0 * f.linear.cost).max(1e-300);
+    let n = n as f64;
+    n * (sse / n).ln() + f.structure.n_params() as f64 * n.ln()
+}
+
+/// Moving-block bootstrap 95 % band of the RMSE of residual `e` (blocks of `n/25`
+/// samples, at least 20; 400 resamples).
+fn rmse_band(e: &[f64], seed: u64, label: &str) -> [f64; 2] {
+    let n = e.len();
+    if n < 40 {
+        let r = residual::rms(e);
+        return [r, r];
+    }
+    let sq: Vec<f64> = e.iter().map(|v| v * v).collect();
+    let block = (n / 25).max(20).min(n);
+    let starts = n - block + 1;
+    let mut rng = TrialSeed::derive(seed, label, "rmse-band", 0).rng(0);
+    let mut v: Vec<f64> = (0..400)
+        .map(|_| {
+            let mut s = 0.0;
+            let mut m = 0;
+            while m < n {
+                let a = rng.random_range(0..starts);
+                let take = block.min(n - m);
+                s += sq[a..a + take].iter().sum::<f64>();
+                m += take;
+            }
+            (s / n as f64).sqrt()
+        })
+        .collect();
+    v.sort_by(f64::total_cmp);
+    [
+        crate::stats::quantile_sorted(&v, 0.025),
+        crate::stats::quantile_sorted(&v, 0.975),
+    ]
+}
+
+/// Residuals and battery of a fitted model on the validation data.
+struct Evaluated {
+    fitted: Fitted,
+    out_t: Vec<f64>,
+    out_v: Vec<f64>,
+    validate_rmse: f64,
+    tests: Vec<TestResult>,
+    score: f64,
+}
+
+fn evaluate(mut f: Fitted, d: &Data, opts: &Options) -> Evaluated {
+    let (out_t, _) = f.structure.simulate(&f.theta, &f.linear.coef, &d.ut);
+    let (theta_v, used) = fit::initial_state_for(&f, &d.uv, &d.yv, 60, opts.seed);
+    f.evaluations += used;
+    let (out_v, _) = f.structure.simulate(&theta_v, &f.linear.coef, &d.uv);
+    let ev: Vec<f64> = d.yv.iter().zip(&out_v).map(|(a, b)| a - b).collect();
+    let tests = residual::battery(&d.uv, &ev, opts.lags, opts.alpha);
+    Evaluated {
+        validate_rmse: residual::rms(&ev),
+        score: residual::score(&tests),
+        tests,
+        fitted: f,
+        out_t,
+        out_v,
+    }
+}
+
+fn named(f: &Fitted) -> BTreeMap<String, f64> {
+    f.structure
+        .named_params(&f.theta, &f.linear.coef)
+        .into_iter()
+        .collect()
+}
+
+/// p-value of `score` against sorted bootstrap scores: `(1 + #{s* ≥ s}) / (B + 1)`.
+fn boot_p(score: f64, boot: &[f64]) -> f64 {
+    let k = boot.iter().filter(|&&s| s >= score).count();
+    (1 + k) as f64 / (boot.len() + 1) as f64
+}
+
+fn summary(e: &Evaluated, d: &Data, boot: &[f64], seed: u64) -> ModelSummary {
+    let ev: Vec<f64> = d.yv.iter().zip(&e.out_v).map(|(a, b)| a - b).collect();
+    let label = e.fitted.structure.label();
+    ModelSummary {
+        model: label.clone(),
+        train_rmse: e.fitted.rmse(d.ut.len()),
+        validate_rmse: e.validate_rmse,
+        validate_band: rmse_band(&ev, seed, &label),
+        bic: bic(&e.fitted, d.ut.len()),
+        params: named(&e.fitted),
+        tests: e.tests.clone(),
+        score: e.score,
+        p_value: boot_p(e.score, boot),
+        evaluations: e.fitted.evaluations,
+    }
+}
+
+/// Parametric bootstrap of the fitted baseline: the battery's score on refits to the
+/// baseline's own simulated output plus Gaussian noise of RMS `sigma`.
+fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> Vec<f64> {
+    let st = &base.structure;
+    let (mt, _) = st.simulate(&base.theta, &base.linear.coef, &d.ut);
+    let (theta_v, _) = fit::initial_state_for(base, &d.uv, &d.yv, 60, opts.seed);
+    let (mv, _) = st.simulate(&theta_v, &base.linear.coef, &d.uv);
+    let mut scores: Vec<f64> = (0..opts.bootstrap)
+        .into_par_iter()
+        .map(|b| {
+            let mut rng = TrialSeed::derive(opts.seed, "diagnose", "bootstrap", b as u64).rng(0);
+            let yt: Vec<f64> = mt
+                .iter()
+                .map(|m| m + sigma * standard_normal(&mut rng))
+                .collect();
+            let yv: Vec<f64> = mv
+                .iter()
+                .map(|m| m + sigma * standard_normal(&mut rng))
+                .collect();
+            let yt = Arc::new(yt);
+            let refit = fit::fit(
+                st,
+                &d.ut,
+                &yt,
+                Some(&base.theta),
+                None,
+                Budget {
+                    global: 0,
+                    swarm: 1,
+                    polish: opts.candidate_budget.polish / 2,
+                    rounds: 1,
+                },
+                opts.seed ^ (0xb00 + b as u64),
+            );
+            let (tv, _) = fit::initial_state_for(&refit, &d.uv, &yv, 60, opts.seed);
+            let (ov, _) = st.simulate(&tv, &refit.linear.coef, &d.uv);
+            let ev: Vec<f64> = yv.iter().zip(&ov).map(|(a, b)| a - b).collect();
+            residual::score(&residual::battery(&d.uv, &ev, opts.lags, opts.alpha))
+        })
+        .collect();
+    scores.sort_by(f64::total_cmp);
+    scores
+}
+
+/// Diagnoses `train` against `validate` (same sampling interval).
+pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Result<Diagnosis> {
+    let started = std::time::Instant::now();
+    let fixed_n = opts.fixed_n()?;
+    let dt = train.dt();
+    let dv = validate.dt();
+    if ((dv - dt) / dt).abs() > 1e-6 {
+        return Err(Error::Input(format!(
+            "{} is sampled every {dv} s but {} every {dt} s; diagnose needs one sampling interval",
+            validate.name, train.name
+        )));
+    }
+    if train.len() < 200 || validate.len() < 200 {
+        return Err(Error::Input(format!(
+            "diagnose needs at least 200 samples per recording ({}: {}, {}: {})",
+            train.name,
+            train.len(),
+            validate.name,
+            validate.len()
+        )));
+    }
+    let d = Data {
+        ut: Arc::new(train.u.clone()),
+        yt: Arc::new(train.y.clone()),
+        uv: validate.u.clone(),
+        yv: validate.y.clone(),
+    };
+    let ctx = Context::from_training(&train.u, dt);
+    let noise = {
+        let (a, b) = (
+            residual::noise_floor(&train.y),
+            residual::noise_floor(&validate.y),
+        );
+        (0.5 * (a * a + b * b)).sqrt()
+    };
+    let plain = Structure::new(&[], fixed_n, ctx);
+    let base_fit = fit::fit(
+        &plain,
+        &d.ut,
+        &d.yt,
+        None,
+        None,
+        opts.baseline_budget,
+        opts.seed,
+    );
+    let mut evaluations = base_fit.evaluations;
+    // With n free, ask BIC whether n = 1 (the closed-form kernel, ten times faster) is as
+    // good: keep n free only if it improves BIC by the margin.
+    let mut n_choice = match fixed_n {
+        Some(n) => format!("n pinned at {n} by --model {}", opts.model),
+        None => String::new(),
+    };
+    let base_fit = if fixed_n.is_none() {
+        let pinned = Structure::new(&[], Some(1.0), ctx);
+        let start = plain.embed(&base_fit.theta, &pinned);
+        let f1 = fit::fit(
+            &pinned,
+            &d.ut,
+            &d.yt,
+            Some(&start),
+            None,
+            Budget {
+                global: 0,
+                ..opts.baseline_budget
+            },
+            opts.seed,
+        );
+        evaluations += f1.evaluations;
+        let (b_free, b_one) = (bic(&base_fit, d.ut.len()), bic(&f1, d.ut.len()));
+        let n_fit = base_fit.structure.named_params(&base_fit.theta, &base_fit.linear.coef)[4].1;
+        if b_free < b_one - opts.bic_margin {
+            n_choice = format!(
+                "n fitted: {} (BIC {} below n = 1's, margin {})",
+                crate::report::table::sig(n_fit, 4),
+                crate::report::table::sig(b_one - b_free, 3),
+                opts.bic_margin
+            );
+            base_fit
+        } else {
+            n_choice = format!(
+                "n = 1: the fitted n = {} improves BIC by only {} (margin {})",
+                crate::report::table::sig(n_fit, 4),
+                crate::report::table::sig(b_one - b_free, 3),
+                opts.bic_margin
+            );
+            f1
+        }
+    } else {
+        base_fit
+    };
+    let base = evaluate(base_fit, &d, opts);
+    let boot = bootstrap_scores(&base.fitted, &d, noise.max(1e-300), opts);
+    evaluations += (boot.len() as u64) * opts.candidate_budget.polish / 2;
+    let ev_base: Vec<f64> = d.yv.iter().zip(&base.out_v).map(|(a, b)| a - b).collect();
+    let unit = validate.units[2].clone();
+    let located = residual::locate(&d.uv, &ev_base, dt, noise, &unit);
+    let baseline = summary(&base, &d, &boot, opts.seed);
+
+    let base_out = [base.out_t.clone(), base.out_v.clone()];
+    let mut current = base;
+    let mut current_summary = baseline.clone();
+    let mut candidates = Vec::new();
+    let mut left_out = Vec::new();
+    let nt = d.ut.len();
+    for round in 1..=opts.max_rounds {
+        let parent = current.fitted.structure.clone();
+        let pool: Vec<Effect> = opts
+            .effects
+            .iter()
+            .copied()
+            .filter(|e| !parent.has(*e))
+            .collect();
+        if pool.is_empty() {
+            break;
+        }
+        let tried: Vec<Evaluated> = pool
+            .par_iter()
+            .map(|&e| {
+                let st = parent.extended(e);
+                let start = parent.embed(&current.fitted.theta, &st);
+                let free: Vec<usize> = st
+                    .specs()
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, s)| s.effect == Some(e))
+                    .map(|(i, _)| i)
+                    .collect();
+                let f = fit::fit(
+                    &st,
+                    &d.ut,
+                    &d.yt,
+                    Some(&start),
+                    Some(&free),
+                    opts.candidate_budget,
+                    opts.seed.wrapping_add(round as u64),
+                );
+                evaluate(f, &d, opts)
+            })
+            .collect();
+        let parent_bic = bic(&current.fitted, nt);
+        let band = current_summary.validate_band;
+        let mut best: Option<(usize, f64)> = None;
+        let first = candidates.len();
+        for (i, (e, c)) in pool.iter().zip(&tried).enumerate() {
+            evaluations += c.fitted.evaluations;
+            let delta = bic(&c.fitted, nt) - parent_bic;
+            let bic_ok = delta < -opts.bic_margin;
+            let band_ok = c.validate_rmse < band[0];
+            let white_ok = c.score < current.score;
+            let ok = bic_ok && band_ok && white_ok;
+            let mark = |b: bool| if b { "yes" } else { "no" };
+            let fmt = |x: f64| crate::report::table::sig(x, 3);
+            let evidence = format!(
+                "ΔBIC {} (needs < -{}: {}); validation RMSE {} vs parent band [{}, {}] {unit} ({}); residual score {} -> {} ({})",
+                fmt(delta),
+                opts.bic_margin,
+                mark(bic_ok),
+                fmt(c.validate_rmse),
+                fmt(band[0]),
+                fmt(band[1]),
+                mark(band_ok),
+                fmt(current.score),
+                fmt(c.score),
+                mark(white_ok)
+            );
+            if ok && best.is_none_or(|(_, b)| delta < b) {
+                best = Some((i, delta));
+            }
+            candidates.push(Candidate {
+                name: e.name().into(),
+                round,
+                parent: parent.label(),
+                delta_bic: delta,
+                train_rmse: c.fitted.rmse(nt),
+                validate_rmse: c.validate_rmse,
+                score: c.score,
+                accepted: false,
+                params: named(&c.fitted),
+                evidence,
+            });
+        }
+        let Some((i, _)) = best else { break };
+        candidates[first + i].accepted = true;
+        left_out.push(pool[i].name().to_string());
+        current = tried.into_iter().nth(i).expect("index of a candidate");
+        current_summary = summary(&current, &d, &boot, opts.seed);
+    }
+    let threshold = boot.last().copied().unwrap_or(1.0).max(1.0);
+    let unexplained = current_summary.p_value <= 0.05 && current.score > threshold;
+    let series = Series {
+        t: [train.t.clone(), validate.t.clone()],
+        u: [train.u.clone(), validate.u.clone()],
+        y: [train.y.clone(), validate.y.clone()],
+        baseline: base_out,
+        final_model: [current.out_t.clone(), current.out_v.clone()],
+        dt,
+        final_label: current_summary.model.clone(),
+    };
+    let diag = Diagnosis {
+        model: opts.model.clone(),
+        train: train.name.clone(),
+        validate: validate.name.clone(),
+        unit,
+        samples: [train.len(), validate.len()],
+        noise_floor: noise,
+        exponent: n_choice,
+        baseline,
+        located,
+        candidates,
+        left_out,
+        final_model: current_summary,
+        unexplained,
+        bootstrap_scores: boot,
+        seed: opts.seed,
+        evaluations,
+        wall_s: started.elapsed().as_secs_f64(),
+        series,
+    };
+    Ok(diag)
+}

@@ -1,0 +1,248 @@
+//! What a diagnosis shows: a short text, `diagnosis.json` and the figures.
+
+use super::{Diagnosis, residual};
+use crate::error::{Error, Result};
+use crate::report::plots;
+use crate::report::table::sig;
+use crate::results::atomic_write;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The short human report.
+pub fn text(d: &Diagnosis) -> String {
+    let u = if d.unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {}", d.unit)
+    };
+    let f = |x: f64| sig(x, 3);
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "diagnosis of {} ({} samples) against {} ({} samples), model {}",
+        d.train, d.samples[0], d.validate, d.samples[1], d.model
+    );
+    let _ = writeln!(
+        s,
+        "noise floor (from the data): {}{u} RMS",
+        f(d.noise_floor)
+    );
+    let b = &d.baseline;
+    let _ = writeln!(s, "exponent: {}", d.exponent);
+    let _ = writeln!(
+        s,
+        "baseline {}: train RMSE {}{u}, validation RMSE {}{u} (band {}-{}, {:.1}x the noise floor)",
+        b.model,
+        f(b.train_rmse),
+        f(b.validate_rmse),
+        f(b.validate_band[0]),
+        f(b.validate_band[1]),
+        b.validate_rmse / d.noise_floor.max(1e-300)
+    );
+    let _ = writeln!(
+        s,
+        "residual tests: score {} (p = {:.2} against {} bootstrap refits of the baseline)",
+        f(b.score),
+        b.p_value,
+        d.bootstrap_scores.len()
+    );
+    for t in &b.tests {
+        if t.ratio() > 1.0 {
+            let _ = writeln!(
+                s,
+                "  fails: {} = {} > {}{}",
+                t.name,
+                f(t.statistic),
+                f(t.critical),
+                t.lag.map_or(String::new(), |l| format!(" at lag {l}"))
+            );
+        }
+    }
+    if d.located.is_empty() {
+        let _ = writeln!(s, "where: nothing stands out of the noise");
+    } else {
+        let _ = writeln!(s, "where:");
+        for l in &d.located {
+            let _ = writeln!(s, "  [{}] {}", l.place, l.detail);
+        }
+    }
+    let mut round = 0;
+    for c in &d.candidates {
+        if c.round != round {
+            round = c.round;
+            let _ = writeln!(s, "round {round}, extending {}:", c.parent);
+        }
+        let _ = writeln!(
+            s,
+            "  {} {:<16} ΔBIC {:>9}  validation RMSE {}{u}",
+            if c.accepted { "+" } else { " " },
+            c.name,
+            f(c.delta_bic),
+            f(c.validate_rmse)
+        );
+    }
+    let fm = &d.final_model;
+    if d.left_out.is_empty() {
+        let _ = writeln!(
+            s,
+            "left out: nothing; the plain model is enough for these data"
+        );
+    } else {
+        let _ = writeln!(s, "left out: {}", d.left_out.join(", "));
+        let _ = writeln!(
+            s,
+            "final {}: train RMSE {}{u}, validation RMSE {}{u} ({:.1}x the noise floor)",
+            fm.model,
+            f(fm.train_rmse),
+            f(fm.validate_rmse),
+            fm.validate_rmse / d.noise_floor.max(1e-300)
+        );
+        for (k, v) in &fm.params {
+            let _ = writeln!(s, "  {k:<22} {}", sig(*v, 5));
+        }
+    }
+    let _ = writeln!(
+        s,
+        "{}",
+        if d.unexplained {
+            "unexplained structure remains in the final residual (battery fails beyond every bootstrap refit)"
+        } else {
+            "no structure left that the residual tests can tell from noise"
+        }
+    );
+    let _ = writeln!(s, "{} evaluations, {:.1} s", d.evaluations, d.wall_s);
+    s
+}
+
+/// Writes `dir/diagnosis.json` and the figures (`dir` is created).
+pub fn write(d: &Diagnosis, dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| Error::io(format!("creating {}", dir.display()), e))?;
+    let mut json = serde_json::to_vec_pretty(d).expect("serialisable");
+    json.push(b'\n');
+    atomic_write(&dir.join("diagnosis.json"), &json)?;
+    figures(d, dir)
+}
+
+/// Mean residual in 20 equal-count bins of `u`, per direction of `u`.
+fn binned(u: &[f64], e: &[f64]) -> [Vec<(f64, f64)>; 2] {
+    let n = u.len().min(e.len());
+    let mut sorted: Vec<f64> = u[..n].to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let bins = 20;
+    let edges: Vec<f64> = (0..=bins).map(|i| sorted[((n - 1) * i) / bins]).collect();
+    let mut acc = [[(0.0, 0.0, 0usize); 20]; 2];
+    for k in 1..n {
+        let d = u[k] - u[k - 1];
+        if d == 0.0 {
+            continue;
+        }
+        let dir = usize::from(d < 0.0);
+        let b = edges[1..bins].iter().filter(|&&x| u[k] > x).count();
+        let a = &mut acc[dir][b];
+        a.0 += u[k];
+        a.1 += e[k];
+        a.2 += 1;
+    }
+    acc.map(|row| {
+        row.iter()
+            .filter(|a| a.2 > 0)
+            .map(|a| (a.0 / a.2 as f64, a.1 / a.2 as f64))
+            .collect()
+    })
+}
+
+fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
+    let s = &d.series;
+    let unit = |i: usize, name: &str| {
+        if d.unit.is_empty() || i != 2 {
+            name.to_string()
+        } else {
+            format!("{name} [{}]", d.unit)
+        }
+    };
+    let fl = s.final_label.clone();
+    for (set, i) in [("train", 0), ("validate", 1)] {
+        let eb: Vec<f64> = s.y[i]
+            .iter()
+            .zip(&s.baseline[i])
+            .map(|(a, b)| a - b)
+            .collect();
+        let ef: Vec<f64> = s.y[i]
+            .iter()
+            .zip(&s.final_model[i])
+            .map(|(a, b)| a - b)
+            .collect();
+        let pts = |e: &[f64]| -> Vec<(f64, f64)> {
+            s.t[i].iter().copied().zip(e.iter().copied()).collect()
+        };
+        plots::lines(
+            &dir.join(format!("{set}_residual_time")),
+            &format!("{set}: residual over time"),
+            &[
+                ("baseline (bouc-wen)".into(), pts(&eb)),
+                (format!("final ({fl})"), pts(&ef)),
+            ],
+            "time [s]",
+            &unit(2, "residual"),
+            (false, false),
+        )?;
+        let [br, bf] = binned(&s.u[i], &eb);
+        let [fr, ff] = binned(&s.u[i], &ef);
+        plots::lines(
+            &dir.join(format!("{set}_residual_loop")),
+            &format!("{set}: mean residual by input and direction"),
+            &[
+                ("baseline, u rising".into(), br),
+                ("baseline, u falling".into(), bf),
+                ("final, u rising".into(), fr),
+                ("final, u falling".into(), ff),
+            ],
+            "input u (20 equal-count bins)",
+            &unit(2, "mean residual"),
+            (false, false),
+        )?;
+        let sb = residual::spectra(&s.u[i], &eb, s.dt, 1024);
+        let sf = residual::spectra(&s.u[i], &ef, s.dt, 1024);
+        let floor = 2.0 * d.noise_floor * d.noise_floor * s.dt;
+        let psd = |sp: &residual::Spectra| -> Vec<(f64, f64)> {
+            sp.freq
+                .iter()
+                .zip(&sp.psd_e)
+                .skip(1)
+                .map(|(a, b)| (*a, *b))
+                .collect()
+        };
+        let flat: Vec<(f64, f64)> = sb.freq.iter().skip(1).map(|f| (*f, floor)).collect();
+        let psd_unit = if d.unit.is_empty() {
+            "residual PSD [1/Hz]".to_string()
+        } else {
+            format!("residual PSD [{}²/Hz]", d.unit)
+        };
+        plots::lines(
+            &dir.join(format!("{set}_residual_spectrum")),
+            &format!("{set}: residual spectrum (Welch)"),
+            &[
+                ("baseline".into(), psd(&sb)),
+                (format!("final ({fl})"), psd(&sf)),
+                ("noise floor".into(), flat),
+            ],
+            "frequency [Hz]",
+            &psd_unit,
+            (true, true),
+        )?;
+        plots::loops(
+            &dir.join(format!("{set}_loops")),
+            &format!("{set}: measured and model loops"),
+            &s.u[i],
+            &s.y[i],
+            &[
+                ("baseline (bouc-wen)".into(), s.baseline[i].clone()),
+                (format!("final ({fl})"), s.final_model[i].clone()),
+            ],
+            "input u",
+            &unit(2, "output"),
+        )?;
+    }
+    Ok(())
+}

@@ -1,0 +1,676 @@
+//! Residual analysis: the noise floor, whiteness and correlation tests (Ljung-Box,
+//! cross-correlation with the prewhitened input, Billings' higher-order correlations),
+//! and where a residual sits in time, in the loop plane and in frequency.
+//!
+//! Every test returns its statistic with an asymptotic critical value at a per-test level
+//! (Bonferroni over lags inside a test, and over the tests of a battery), so a battery's
+//! *score* (largest statistic / critical value) exceeds 1 with probability at most the
+//! family level under a white residual. The diagnosis calibrates that score further with a
+//! parametric bootstrap of the fitted model (see [`super`]).
+
+use rustfft::FftPlanner;
+use rustfft::num_complex::Complex;
+use serde::Serialize;
+use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
+
+/// Measurement-noise RMS from the data alone: `k`-th differences of white noise have
+/// variance `C(2k, k) σ²` while those of a smooth signal vanish, so each order gives a
+/// robust (MAD) estimate; the smallest over `k = 2..=5` is the least contaminated by
+/// signal. Steps in the data are outliers to the MAD and barely move it.
+pub fn noise_floor(y: &[f64]) -> f64 {
+    let mut best = f64::INFINITY;
+    let mut d = y.to_vec();
+    for k in 1..=5u32 {
+        d = d.windows(2).map(|w| w[1] - w[0]).collect();
+        if k < 2 || d.len() < 16 {
+            continue;
+        }
+        let binom: f64 = (1..=k).map(|i| f64::from(k + i) / f64::from(i)).product();
+        let mut a: Vec<f64> = d.iter().map(|x| x.abs()).collect();
+        a.sort_by(f64::total_cmp);
+        let mad = a[a.len() / 2];
+        best = best.min(1.4826 * mad / binom.sqrt());
+    }
+    if best.is_finite() { best } else { 0.0 }
+}
+
+/// Root mean square.
+pub fn rms(x: &[f64]) -> f64 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
+}
+
+fn centred(x: &[f64]) -> Vec<f64> {
+    let m = x.iter().sum::<f64>() / x.len().max(1) as f64;
+    x.iter().map(|v| v - m).collect()
+}
+
+/// Normalised cross-correlation `r_xy(τ) = Σ x(t) y(t+τ) / (N σx σy)` of centred series for
+/// `τ` in `lags` (positive: `x` leads).
+fn xcorr(x: &[f64], y: &[f64], lags: std::ops::RangeInclusive<i64>) -> Vec<(i64, f64)> {
+    let n = x.len().min(y.len());
+    let (x, y) = (centred(&x[..n]), centred(&y[..n]));
+    let sx = x.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let sy = y.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let denom = sx * sy;
+    lags.map(|tau| {
+        let s: f64 = if tau >= 0 {
+            let t = tau as usize;
+            (0..n.saturating_sub(t)).map(|i| x[i] * y[i + t]).sum()
+        } else {
+            let t = (-tau) as usize;
+            (0..n.saturating_sub(t)).map(|i| x[i + t] * y[i]).sum()
+        };
+        (tau, if denom > 0.0 { s / denom } else { 0.0 })
+    })
+    .collect()
+}
+
+/// One test's outcome.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct TestResult {
+    pub name: String,
+    pub statistic: f64,
+    /// Critical value at the test's level.
+    pub critical: f64,
+    /// Asymptotic p-value (Bonferroni-adjusted over lags).
+    pub p_value: f64,
+    /// Where the statistic peaks (lag in samples), if it is a maximum over lags.
+    pub lag: Option<i64>,
+}
+
+impl TestResult {
+    /// Statistic over critical value: > 1 rejects.
+    pub fn ratio(&self) -> f64 {
+        if self.critical > 0.0 {
+            self.statistic / self.critical
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Ljung-Box `Q = N(N+2) Σ_{k≤m} r_k²/(N-k)`, χ²(m) under whiteness.
+pub fn ljung_box(e: &[f64], m: usize, alpha: f64) -> TestResult {
+    let n = e.len() as f64;
+    let r = xcorr(e, e, 1..=m as i64);
+    let q: f64 = r
+        .iter()
+        .map(|&(k, rk)| rk * rk / (n - k as f64))
+        .sum::<f64>()
+        * n
+        * (n + 2.0);
+    let chi = ChiSquared::new(m as f64).expect("m > 0");
+    TestResult {
+        name: format!("Ljung-Box (lags 1-{m})"),
+        statistic: q,
+        critical: chi.inverse_cdf(1.0 - alpha),
+        p_value: 1.0 - chi.cdf(q),
+        lag: None,
+    }
+}
+
+/// Bartlett's variance factor of a cross-correlation of `x` and `y` (`N Var r = 1 + 2 Σ
+/// ρx(k) ρy(k)`): 1 when either series is white, larger when both are coloured (an input
+/// the prewhitening could not whiten, say), so the bound stays honest.
+fn bartlett(x: &[f64], y: &[f64], m: usize) -> f64 {
+    let rx = xcorr(x, x, 1..=m as i64);
+    let ry = xcorr(y, y, 1..=m as i64);
+    let s: f64 = rx.iter().zip(&ry).map(|(a, b)| a.1 * b.1).sum();
+    (1.0 + 2.0 * s).max(0.5)
+}
+
+/// Largest `|r(τ)|` over `lags` against its Bonferroni bound `z_{1-α/(2L)} √(f/N)`, `f`
+/// the Bartlett factor of the two series.
+fn max_corr_test(
+    name: String,
+    r: &[(i64, f64)],
+    (x, y): (&[f64], &[f64]),
+    alpha: f64,
+) -> TestResult {
+    let n = x.len().min(y.len());
+    let l = r.len().max(1) as f64;
+    let normal = Normal::new(0.0, 1.0).expect("standard normal");
+    let (lag, peak) = r
+        .iter()
+        .copied()
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        .unwrap_or((0, 0.0));
+    let se = (bartlett(x, y, 50) / n as f64).sqrt();
+    let z = peak.abs() / se;
+    TestResult {
+        name,
+        statistic: peak.abs(),
+        critical: normal.inverse_cdf(1.0 - alpha / (2.0 * l)) * se,
+        p_value: (2.0 * (1.0 - normal.cdf(z)) * l).min(1.0),
+        lag: Some(lag),
+    }
+}
+
+/// Coefficients `a` of the least-squares AR(p) fit `x_t = Σ a_i x_{t-i} + ε`.
+fn ar_fit(x: &[f64], p: usize) -> Vec<f64> {
+    let n = x.len();
+    if n <= 2 * p + 2 {
+        return vec![0.0; p];
+    }
+    let cols: Vec<Vec<f64>> = (1..=p).map(|i| x[p - i..n - i].to_vec()).collect();
+    crate::physics::structure::least_squares(&cols, &x[p..])
+}
+
+/// `x` through the whitening filter `1 - Σ a_i z^-i` (first `p` samples dropped).
+fn ar_filter(x: &[f64], a: &[f64]) -> Vec<f64> {
+    let p = a.len();
+    (p..x.len())
+        .map(|t| {
+            x[t] - a
+                .iter()
+                .enumerate()
+                .map(|(i, c)| c * x[t - 1 - i])
+                .sum::<f64>()
+        })
+        .collect()
+}
+
+/// The residual test battery on residual `e` of input `u`. Each of the five tests runs at
+/// level `alpha / 5`.
+pub fn battery(u: &[f64], e: &[f64], lags: usize, alpha: f64) -> Vec<TestResult> {
+    let n = e.len().min(u.len());
+    let (u, e) = (&u[..n], &e[..n]);
+    let a = alpha / 5.0;
+    let l = lags as i64;
+    let mut out = vec![ljung_box(e, lags, a)];
+    // Box-Jenkins prewhitening: an AR(10) whitening filter of the input applied to both.
+    let uc = centred(u);
+    let coef = ar_fit(&uc, 10);
+    let (uw, ew) = (ar_filter(&uc, &coef), ar_filter(e, &coef));
+    out.push(max_corr_test(
+        format!("input-residual cross-correlation, prewhitened (lags -{l}..{l})"),
+        &xcorr(&uw, &ew, -l..=l),
+        (&uw, &ew),
+        a,
+    ));
+    // Billings and Voon: u²' (centred square of the centred input) against e and e².
+    let u2: Vec<f64> = centred(&uc.iter().map(|v| v * v).collect::<Vec<_>>());
+    out.push(max_corr_test(
+        format!("Billings u²'-e (even-order, lags -{l}..{l})"),
+        &xcorr(&u2, e, -l..=l),
+        (&u2, e),
+        a,
+    ));
+    let e2: Vec<f64> = e.iter().map(|v| v * v).collect();
+    out.push(max_corr_test(
+        format!("Billings u²'-e² (lags -{l}..{l})"),
+        &xcorr(&u2, &e2, -l..=l),
+        (&u2, &e2),
+        a,
+    ));
+    // φ_e(eu)(τ) = corr(e(t), e(t-1-τ) u(t-1-τ)), τ ≥ 0.
+    let eu: Vec<f64> = e.iter().zip(&uc).map(|(x, y)| x * y).collect();
+    let r: Vec<(i64, f64)> = xcorr(&eu, e, 1..=l + 1)
+        .into_iter()
+        .map(|(t, r)| (t - 1, r))
+        .collect();
+    out.push(max_corr_test(
+        format!("Billings e-(e·u) (lags 0..{l})"),
+        &r,
+        (&eu, e),
+        a,
+    ));
+    out
+}
+
+/// Largest ratio of a battery: > 1 means some test rejects at its level.
+pub fn score(tests: &[TestResult]) -> f64 {
+    tests.iter().map(TestResult::ratio).fold(0.0, f64::max)
+}
+
+/// Welch estimates on segments of `seg` samples (Hann window, 50 % overlap): frequencies,
+/// residual PSD (one-sided, units²/Hz), input PSD, magnitude-squared coherence of input and
+/// residual, and the input-to-residual response `S_ue/S_uu`; with the number of segments.
+pub struct Spectra {
+    pub freq: Vec<f64>,
+    pub psd_e: Vec<f64>,
+    pub coherence: Vec<f64>,
+    pub response: Vec<Complex<f64>>,
+    pub segments: usize,
+}
+
+/// See [`Spectra`]. `seg` is reduced to fit the record (at least 16).
+pub fn spectra(u: &[f64], e: &[f64], dt: f64, seg: usize) -> Spectra {
+    let n = u.len().min(e.len());
+    let seg = seg.min(n / 2).max(16).min(n.max(16));
+    let hop = seg / 2;
+    let win: Vec<f64> = (0..seg)
+        .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / seg as f64).cos())
+        .collect();
+    let wss: f64 = win.iter().map(|w| w * w).sum();
+    let mut planner = FftPlanner::<f64>::new();
+    let fft = planner.plan_fft_forward(seg);
+    let bins = seg / 2 + 1;
+    let (mut suu, mut see) = (vec![0.0; bins], vec![0.0; bins]);
+    let mut sue = vec![Complex::new(0.0, 0.0); bins];
+    let mut segments = 0;
+    let mut start = 0;
+    while start + seg <= n {
+        let mu = u[start..start + seg].iter().sum::<f64>() / seg as f64;
+        let me = e[start..start + seg].iter().sum::<f64>() / seg as f64;
+        let mut a: Vec<Complex<f64>> = (0..seg)
+            .map(|i| Complex::new((u[start + i] - mu) * win[i], 0.0))
+            .collect();
+        let mut b: Vec<Complex<f64>> = (0..seg)
+            .map(|i| Complex::new((e[start + i] - me) * win[i], 0.0))
+            .collect();
+        fft.process(&mut a);
+        fft.process(&mut b);
+        for k in 0..bins {
+            suu[k] += a[k].norm_sqr();
+            see[k] += b[k].norm_sqr();
+            sue[k] += a[k].conj() * b[k];
+        }
+        segments += 1;
+        start += hop;
+    }
+    let norm = 2.0 * dt / (wss * segments.max(1) as f64);
+    let freq = (0..bins).map(|k| k as f64 / (seg as f64 * dt)).collect();
+    let coherence = (0..bins)
+        .map(|k| {
+            let d = suu[k] * see[k];
+            if d > 0.0 { sue[k].norm_sqr() / d } else { 0.0 }
+        })
+        .collect();
+    let response = (0..bins)
+        .map(|k| {
+            if suu[k] > 0.0 {
+                sue[k] / suu[k]
+            } else {
+                Complex::new(0.0, 0.0)
+            }
+        })
+        .collect();
+    Spectra {
+        freq,
+        psd_e: see.iter().map(|v| v * norm).collect(),
+        coherence,
+        response,
+        segments,
+    }
+}
+
+/// A finding of where the residual sits.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Located {
+    /// `time`, `loop` or `frequency`.
+    #[serde(rename = "where")]
+    pub place: String,
+    pub detail: String,
+    /// How strong (test statistic over its threshold, or a ratio); for sorting.
+    #[serde(skip)]
+    pub strength: f64,
+}
+
+/// Where residual `e` of input `u` (sampled every `dt`, noise RMS `noise`) sits: after
+/// turning points and steps, against a slow trend, in (u, direction) bins, and in
+/// frequency (residual power over the noise floor, input-residual coherence).
+pub fn locate(u: &[f64], e: &[f64], dt: f64, noise: f64, unit: &str) -> Vec<Located> {
+    let n = u.len().min(e.len());
+    let (u, e) = (&u[..n], &e[..n]);
+    let mut out = Vec::new();
+    if n < 64 {
+        return out;
+    }
+    let normal = Normal::new(0.0, 1.0).expect("standard normal");
+    let total_ms = e.iter().map(|v| v * v).sum::<f64>() / n as f64;
+    let fmt = |x: f64| crate::report::table::sig(x, 3);
+
+    // Time: windows after turning points (sign changes of du beyond a dead band) and steps.
+    let du: Vec<f64> = u.windows(2).map(|w| w[1] - w[0]).collect();
+    let mut sorted: Vec<f64> = du.iter().map(|x| x.abs()).collect();
+    sorted.sort_by(f64::total_cmp);
+    let med = sorted[sorted.len() / 2];
+    let dead = 1e-9 * u.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let mut turns = Vec::new();
+    let mut last_sign = 0.0;
+    for (k, d) in du.iter().enumerate() {
+        if d.abs() <= dead {
+            continue;
+        }
+        let s = d.signum();
+        if last_sign != 0.0 && s != last_sign {
+            turns.push(k + 1);
+        }
+        last_sign = s;
+    }
+    let steps: Vec<usize> = du
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| med > 0.0 && d.abs() > 20.0 * med)
+        .map(|(k, _)| k + 1)
+        .collect();
+    let window = ((0.02 / dt).round() as usize).clamp(3, n / 20 + 3);
+    for (what, marks) in [("turning points of u", &turns), ("steps of u", &steps)] {
+        if marks.is_empty() {
+            continue;
+        }
+        let mut inside = vec![false; n];
+        for &m in marks.iter() {
+            for flag in inside.iter_mut().skip(m).take(window) {
+                *flag = true;
+            }
+        }
+        let (mut si, mut ni, mut so, mut no) = (0.0, 0usize, 0.0, 0usize);
+        for k in 0..n {
+            if inside[k] {
+                si += e[k] * e[k];
+                ni += 1;
+            } else {
+                so += e[k] * e[k];
+                no += 1;
+            }
+        }
+        if ni < 10 || no < 10 {
+            continue;
+        }
+        let (ri, ro) = ((si / ni as f64).sqrt(), (so / no as f64).sqrt());
+        if ri > 1.5 * ro && ri > 1.5 * noise {
+            out.push(Located {
+                place: "time".into(),
+                detail: format!(
+                    "residual RMS {} {unit} within {} ms after the {} {what}, {} {unit} elsewhere",
+                    fmt(ri),
+                    fmt(window as f64 * dt * 1e3),
+                    marks.len(),
+                    fmt(ro)
+                ),
+                strength: ri / ro,
+            });
+        }
+    }
+    // Slow trend: share of the residual's power in a linear + quadratic trend of time.
+    let t: Vec<f64> = (0..n).map(|k| k as f64 / n as f64).collect();
+    let t2: Vec<f64> = t.iter().map(|x| x * x).collect();
+    let coef = crate::physics::structure::least_squares(&[vec![1.0; n], t.clone(), t2.clone()], e);
+    let trend: Vec<f64> = (0..n)
+        .map(|k| coef[0] + coef[1] * t[k] + coef[2] * t2[k])
+        .collect();
+    let trend_ms = centred(&trend).iter().map(|v| v * v).sum::<f64>() / n as f64;
+    if total_ms > 0.0 && trend_ms > 0.1 * total_ms && trend_ms.sqrt() > 0.5 * noise {
+        out.push(Located {
+            place: "time".into(),
+            detail: format!(
+                "slow trend: a quadratic in time holds {:.0} % of the residual power ({} {unit} RMS, end-to-end change {} {unit})",
+                100.0 * trend_ms / total_ms,
+                fmt(trend_ms.sqrt()),
+                fmt(trend[n - 1] - trend[0])
+            ),
+            strength: trend_ms / total_ms * 10.0,
+        });
+    }
+
+    // Loop plane: 8 bins of u (equal counts) x direction of u.
+    let mut us: Vec<f64> = u.to_vec();
+    us.sort_by(f64::total_cmp);
+    let edges: Vec<f64> = (0..=8).map(|i| us[((n - 1) * i) / 8]).collect();
+    let bin_of = |x: f64| edges[1..8].iter().filter(|&&b| x > b).count();
+    let mut sums = [[0.0f64; 2]; 8];
+    let mut sq = [[0.0f64; 2]; 8];
+    let mut cnt = [[0usize; 2]; 8];
+    for k in 1..n {
+        let d = u[k] - u[k - 1];
+        if d.abs() <= dead {
+            continue;
+        }
+        let dir = usize::from(d < 0.0);
+        let b = bin_of(u[k]);
+        sums[b][dir] += e[k];
+        sq[b][dir] += e[k] * e[k];
+        cnt[b][dir] += 1;
+    }
+    // Effective sample size: residual runs are correlated; divide counts by the lag-1
+    // correlation's inflation (1+r)/(1-r).
+    let r1 = xcorr(e, e, 1..=1)[0].1.clamp(-0.9, 0.99);
+    let inflation = (1.0 + r1) / (1.0 - r1);
+    let crit = normal.inverse_cdf(1.0 - 0.01 / 32.0);
+    let mut cells = Vec::new();
+    for b in 0..8 {
+        for dir in 0..2 {
+            let c = cnt[b][dir];
+            if c < 10 {
+                continue;
+            }
+            let mean = sums[b][dir] / c as f64;
+            let var = (sq[b][dir] / c as f64 - mean * mean).max(0.0);
+            let se = (var * inflation.max(1.0) / c as f64).sqrt().max(1e-300);
+            cells.push((b, dir, mean, mean / se));
+        }
+    }
+    cells.sort_by(|a, b| b.3.abs().total_cmp(&a.3.abs()));
+    for &(b, dir, mean, z) in cells.iter().take(3) {
+        if z.abs() > crit && mean.abs() > 0.5 * noise {
+            out.push(Located {
+                place: "loop".into(),
+                detail: format!(
+                    "{} branch, u in [{}, {}]: mean residual {} {unit} (z = {:.1})",
+                    if dir == 0 { "rising" } else { "falling" },
+                    fmt(edges[b]),
+                    fmt(edges[b + 1]),
+                    fmt(mean),
+                    z
+                ),
+                strength: z.abs() / crit,
+            });
+        }
+    }
+    // Branch-average shape against u: even (u²) or odd pattern of the bin means.
+    let avg: Vec<f64> = (0..8)
+        .map(|b| {
+            let c = cnt[b][0] + cnt[b][1];
+            if c > 0 {
+                (sums[b][0] + sums[b][1]) / c as f64
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let width: Vec<f64> = (0..8)
+        .map(|b| {
+            let m = |d: usize| {
+                if cnt[b][d] > 0 {
+                    sums[b][d] / cnt[b][d] as f64
+                } else {
+                    0.0
+                }
+            };
+            m(0) - m(1)
+        })
+        .collect();
+    let (ra, rw) = (rms(&avg), rms(&width));
+    if ra.max(rw) > noise && out.iter().any(|l| l.place == "loop") {
+        out.push(Located {
+            place: "loop".into(),
+            detail: format!(
+                "branch-average error {} {unit} RMS over u (shape of the loop's centre line), rising-minus-falling error {} {unit} RMS (loop width)",
+                fmt(ra),
+                fmt(rw)
+            ),
+            strength: 1.0,
+        });
+    }
+
+    // Frequency: residual power above the noise floor, and coherence with the input.
+    let sp = spectra(u, e, dt, 1024);
+    let floor = 2.0 * noise * noise * dt;
+    if sp.segments >= 2 && floor > 0.0 {
+        let ratio: Vec<f64> = sp.psd_e.iter().map(|p| p / floor).collect();
+        if let Some((k, r)) = ratio
+            .iter()
+            .enumerate()
+            .skip(1)
+            .max_by(|a, b| a.1.total_cmp(b.1))
+            .map(|(k, r)| (k, *r))
+        {
+            // 2 dof per segment: the Welch estimate's 99.9 % quantile is about 6.9/K + 1
+            // times its mean for K segments; demand 4x and that.
+            let need = 4.0f64.max(1.0 + 6.9 / sp.segments as f64 * 2.0);
+            if r > need {
+                let band: Vec<usize> = (1..ratio.len()).filter(|&i| ratio[i] > need).collect();
+                let (lo, hi) = (sp.freq[band[0]], sp.freq[*band.last().unwrap()]);
+                out.push(Located {
+                    place: "frequency".into(),
+                    detail: format!(
+                        "residual power up to {:.0}x the noise floor (peak at {} Hz; above {:.0}x from {} to {} Hz)",
+                        r,
+                        fmt(sp.freq[k]),
+                        need,
+                        fmt(lo),
+                        fmt(hi)
+                    ),
+                    strength: r / need,
+                });
+            }
+        }
+        // Coherence significance for K segments (Welch, 50 % overlap treated as K):
+        // P(C > c) = (1-c)^(K-1) under independence; Bonferroni over the bins.
+        let bins = sp.freq.len() as f64;
+        let k = sp.segments as f64;
+        let c_crit = 1.0 - (0.01 / bins).powf(1.0 / (k - 1.0).max(1.0));
+        let sig: Vec<usize> = (1..sp.coherence.len())
+            .filter(|&i| sp.coherence[i] > c_crit)
+            .collect();
+        if !sig.is_empty() {
+            let best = *sig
+                .iter()
+                .max_by(|a, b| sp.coherence[**a].total_cmp(&sp.coherence[**b]))
+                .unwrap();
+            let h = sp.response[best];
+            out.push(Located {
+                place: "frequency".into(),
+                detail: format!(
+                    "input-residual coherence {:.2} at {} Hz (threshold {:.2}; {} of {} bins significant, {}-{} Hz); residual/input response there {} {unit}/input unit at phase {:.0} deg",
+                    sp.coherence[best],
+                    fmt(sp.freq[best]),
+                    c_crit,
+                    sig.len(),
+                    sp.freq.len(),
+                    fmt(sp.freq[sig[0]]),
+                    fmt(sp.freq[*sig.last().unwrap()]),
+                    fmt(h.norm()),
+                    h.arg().to_degrees()
+                ),
+                strength: sp.coherence[best] / c_crit,
+            });
+        }
+    }
+    out.sort_by(|a, b| b.strength.total_cmp(&a.strength));
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::harness::TrialSeed;
+    use crate::optimizer::operators::standard_normal;
+
+    fn white(n: usize, seed: u64, sigma: f64) -> Vec<f64> {
+        let mut rng = TrialSeed::from_u64(seed).rng(0);
+        (0..n).map(|_| sigma * standard_normal(&mut rng)).collect()
+    }
+
+    #[test]
+    fn noise_floor_of_smooth_signal_plus_noise() {
+        let n = 4000;
+        let e = white(n, 1, 3e-4);
+        let y: Vec<f64> = (0..n)
+            .map(|k| 0.3 * (k as f64 * 0.01).sin() + 0.2 * (k as f64 * 0.031).cos() + e[k])
+            .collect();
+        let s = noise_floor(&y);
+        assert!((s / 3e-4 - 1.0).abs() < 0.1, "{s}");
+    }
+
+    #[test]
+    fn white_residual_passes_and_structure_fails() {
+        let n = 4000;
+        // A slow input with a random (low-passed noise) part, as excitations are.
+        let w = white(n, 1234, 1.0);
+        let mut lp = 0.0;
+        let u: Vec<f64> = (0..n)
+            .map(|k| {
+                lp = 0.9 * lp + 0.1 * w[k];
+                2.0 + 2.0 * (k as f64 * 0.013).sin() + (k as f64 * 0.0041).cos() + lp
+            })
+            .collect();
+        // Under whiteness the battery's family level is 1 %: count rejections.
+        let mut rejected = 0;
+        for seed in 0..40 {
+            let e = white(n, seed, 1.0);
+            if score(&battery(&u, &e, 20, 0.01)) > 1.0 {
+                rejected += 1;
+            }
+        }
+        assert!(rejected <= 3, "{rejected} of 40 white residuals rejected");
+        // Even-order structure: e = 0.2 u²' + noise trips Billings' u²'-e test.
+        let e0 = white(n, 99, 1.0);
+        let uc = centred(&u);
+        let e: Vec<f64> = (0..n)
+            .map(|k| e0[k] + 0.15 * (uc[k] * uc[k] - 2.5))
+            .collect();
+        let t = battery(&u, &e, 20, 0.01);
+        assert!(t[2].ratio() > 1.0, "{:?}", t[2]);
+        // A lagged linear term trips the prewhitened cross-correlation.
+        let e: Vec<f64> = (0..n)
+            .map(|k| e0[k] + 0.3 * (u[k] - u[k.saturating_sub(3)]) * 20.0)
+            .collect();
+        let t = battery(&u, &e, 20, 0.01);
+        assert!(t[1].ratio() > 1.0, "{:?}", t[1]);
+        assert!(t[0].ratio() > 1.0, "{:?}", t[0]);
+    }
+
+    #[test]
+    fn welch_psd_of_white_noise_is_flat_at_two_sigma2_dt() {
+        let n = 16384;
+        let e = white(n, 3, 0.5);
+        let u = white(n, 4, 1.0);
+        let sp = spectra(&u, &e, 1e-3, 512);
+        let mean: f64 = sp.psd_e[1..].iter().sum::<f64>() / (sp.psd_e.len() - 1) as f64;
+        assert!((mean / (2.0 * 0.25 * 1e-3) - 1.0).abs() < 0.05, "{mean}");
+        // Independent series: coherence small everywhere.
+        assert!(sp.coherence[1..].iter().all(|c| *c < 0.25));
+        // e = 2 u: coherence 1, response 2.
+        let e2: Vec<f64> = u.iter().map(|x| 2.0 * x).collect();
+        let sp = spectra(&u, &e2, 1e-3, 512);
+        assert!(sp.coherence[1..].iter().all(|c| (*c - 1.0).abs() < 1e-9));
+        assert!((sp.response[10].re - 2.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn locate_finds_a_trend_and_a_branch_offset() {
+        let n = 5000;
+        let dt = 1e-3;
+        let u: Vec<f64> = (0..n)
+            .map(|k| 2.0 - 2.0 * (2.0 * std::f64::consts::PI * 2.0 * k as f64 * dt).cos())
+            .collect();
+        let w = white(n, 5, 1e-3);
+        let drift: Vec<f64> = (0..n).map(|k| w[k] + 4e-3 * k as f64 / n as f64).collect();
+        let l = locate(&u, &drift, dt, 1e-3, "mm");
+        assert!(
+            l.iter()
+                .any(|x| x.place == "time" && x.detail.contains("trend")),
+            "{l:?}"
+        );
+        let branch: Vec<f64> = (0..n)
+            .map(|k| {
+                let rising = k > 0 && u[k] > u[k - 1];
+                w[k] + if rising && u[k] > 3.0 { 3e-3 } else { 0.0 }
+            })
+            .collect();
+        let l = locate(&u, &branch, dt, 1e-3, "mm");
+        assert!(
+            l.iter()
+                .any(|x| x.place == "loop" && x.detail.starts_with("rising")),
+            "{l:?}"
+        );
+        // White noise alone: nothing located.
+        assert!(locate(&u, &w, dt, 1e-3, "mm").is_empty());
+    }
+}

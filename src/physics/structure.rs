@@ -1,0 +1,943 @@
+//! Bouc-Wen with switchable structural extensions: the model family that `optbench
+//! diagnose` searches. Each extension is one piece of physics the plain model leaves out,
+//! with its own parameters, physical bounds and a *neutral* value at which the extended
+//! model equals the plain one exactly (so every candidate is nested in its parent).
+//!
+//! ```text
+//!  u ─ delay ─ input-lag ─ saturation ─ asymmetry ─► v ─ Bouc-Wen ─► D ─ creep ─ dynamics ─ + drift ─► y
+//!                                                       (rate-dependence scales h)
+//! ```
+//!
+//! - `delay`: transport delay of `d` samples (fractional: linear interpolation).
+//! - `input-lag`: first-order low-pass `τ` on the command (zero-order hold, as a D/A drives
+//!   an amplifier; exact for a staircase command).
+//! - `saturation`: the drive clipped at `±u_ref / c` (`c = 0`: no clipping).
+//! - `asymmetry`: even-order term `v = x + q x²/u_ref` (unequal up/down gains).
+//! - Bouc-Wen (seed eq. 3.1-3.3) written as `D = d_e v + d0 - α g`, `dg/dv = 1 - (β'
+//!   sgn(v̇ g) + γ')|g|^n`: `h = α g` exactly when `β = β' α^(1-n)`, `γ = γ' α^(1-n)`
+//!   (α > 0), so `d_e`, `d0` and `α` enter linearly and are solved by least squares for
+//!   every shape (variable projection). The optimizer sees only the shape: `log10 s` (`g`
+//!   saturates at `s u_ref`, i.e. `β'+γ' = (s u_ref)^-n`), `w = β'/(β'+γ')` and `n`.
+//! - `rate-dependence`: `h` scaled by `1 + ρ r`, `r` the drive rate `|v̇|` low-passed
+//!   with `τ_r` over its RMS on the training data: loops widen with rate.
+//! - `creep`: a two-element Kelvin-Voigt chain `D + g₁ lag(τ₁) D + g₂ lag(τ₂) D`, one fast
+//!   element (τ₁ from 10 samples to a quarter of the record) and one slow (τ₂ from a
+//!   quarter of the record to ten records), as a piezo creeps on both scales.
+//! - `dynamics`: second-order mode `ÿ + 2ζω ẏ + ω² y = ω² x` after the hysteresis,
+//!   parametrised by `p = 1/ω` (s; `p = 0` passes `x` through) and `ζ`.
+//! - `offset-drift`: `y += a1 t/T + a2 (t/T)²` (T the training duration), two more
+//!   linear coefficients.
+//!
+//! Linear blocks are the exact discretisations of [`super::linear`]: zero-order hold after
+//! the command, exponential hold (the drive relaxes with `τ`) when `input-lag` is on, as
+//! in the twin. Unstable or absurd parameters give a finite penalty ([`cost_cap`]),
+//! never NaN.
+
+use super::bouc_wen::{BoucWenKernel, BoucWenParams, cost_cap};
+use super::linear::{Delay, LowPass, Mode};
+
+/// A piece of physics the plain Bouc-Wen model leaves out.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Effect {
+    Delay,
+    InputLag,
+    Saturation,
+    Asymmetry,
+    RateDependence,
+    Creep,
+    Dynamics,
+    OffsetDrift,
+}
+
+impl Effect {
+    /// Every effect, in chain order.
+    pub const ALL: [Effect; 8] = [
+        Effect::Delay,
+        Effect::InputLag,
+        Effect::Saturation,
+        Effect::Asymmetry,
+        Effect::RateDependence,
+        Effect::Creep,
+        Effect::Dynamics,
+        Effect::OffsetDrift,
+    ];
+
+    /// The name used in reports and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Effect::Delay => "delay",
+            Effect::InputLag => "input-lag",
+            Effect::Saturation => "saturation",
+            Effect::Asymmetry => "asymmetry",
+            Effect::RateDependence => "rate-dependence",
+            Effect::Creep => "creep",
+            Effect::Dynamics => "dynamics",
+            Effect::OffsetDrift => "offset-drift",
+        }
+    }
+
+    /// The effect named `name`, if any.
+    pub fn parse(name: &str) -> Option<Effect> {
+        Self::ALL.into_iter().find(|e| e.name() == name)
+    }
+
+    /// One line on what the effect is, for reports.
+    pub fn meaning(self) -> &'static str {
+        match self {
+            Effect::Delay => "transport delay between command and displacement",
+            Effect::InputLag => "first-order low-pass on the drive (amplifier bandwidth)",
+            Effect::Saturation => "drive clipped at large |u|",
+            Effect::Asymmetry => "even-order term: unequal gains up and down",
+            Effect::RateDependence => "loop width growing with the input rate",
+            Effect::Creep => "slow visco-elastic (Kelvin-Voigt) lag after the hysteresis",
+            Effect::Dynamics => "second-order structural mode after the hysteresis",
+            Effect::OffsetDrift => "sensor offset drifting slowly, uncorrelated with the input",
+        }
+    }
+}
+
+/// One shape parameter: its name, physical bounds and neutral value.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParamSpec {
+    pub name: &'static str,
+    pub lower: f64,
+    pub upper: f64,
+    /// Value at which the parameter's effect vanishes (or a typical start).
+    pub neutral: f64,
+    /// Which effect it belongs to (`None`: the Bouc-Wen shape).
+    pub effect: Option<Effect>,
+}
+
+/// Scales of the training data that make the shape parameters unit-free.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Context {
+    /// Sample interval (s).
+    pub dt: f64,
+    /// Largest |u| of the training input.
+    pub u_ref: f64,
+    /// RMS of |du/dt| of the training input (input units per second).
+    pub rate_ref: f64,
+    /// Duration of the training record (s): the time scale of the drift polynomial.
+    pub t_ref: f64,
+}
+
+impl Context {
+    /// The scales of training input `u` sampled every `dt`.
+    pub fn from_training(u: &[f64], dt: f64) -> Context {
+        let u_ref = u.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(1e-300);
+        let n = u.len().max(2);
+        let ms: f64 = u
+            .windows(2)
+            .map(|w| ((w[1] - w[0]) / dt).powi(2))
+            .sum::<f64>()
+            / (n - 1) as f64;
+        Context {
+            dt,
+            u_ref,
+            rate_ref: ms.sqrt().max(1e-300),
+            t_ref: (n as f64 * dt).max(dt),
+        }
+    }
+}
+
+/// The Bouc-Wen model with a set of extensions, on data with context `ctx`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Structure {
+    effects: Vec<Effect>,
+    fixed_n: Option<f64>,
+    ctx: Context,
+    specs: Vec<ParamSpec>,
+}
+
+/// Outcome of a simulation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Status {
+    Ok,
+    /// Non-finite or unbounded state from sample `at` on.
+    Unstable {
+        at: usize,
+    },
+}
+
+/// The fitted linear coefficients and the training cost of one shape.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinearFit {
+    /// `d_e, d0, α` and, with `offset-drift`, `a1, a2`.
+    pub coef: Vec<f64>,
+    /// `Σ e²/2` (penalty when unstable).
+    pub cost: f64,
+    pub status: Status,
+}
+
+/// Shape parameters decoded from a vector.
+#[derive(Clone, Copy, Debug)]
+struct Shape {
+    s: f64,
+    w: f64,
+    n: f64,
+    g0: f64,
+    delay: f64,
+    lag: f64,
+    sat_c: f64,
+    q: f64,
+    rho: f64,
+    tau_r: f64,
+    creep_g: f64,
+    creep_tau: f64,
+    creep_g2: f64,
+    creep_tau2: f64,
+    mode_p: f64,
+    zeta: f64,
+}
+
+impl Structure {
+    /// The plain model plus `effects` (any order, duplicates ignored); `fixed_n` pins the
+    /// Bouc-Wen exponent (e.g. 1) instead of fitting it.
+    pub fn new(effects: &[Effect], fixed_n: Option<f64>, ctx: Context) -> Structure {
+        let mut effects = effects.to_vec();
+        effects.sort();
+        effects.dedup();
+        let dt = ctx.dt;
+        let t = ctx.t_ref;
+        let spec = |name, lower, upper, neutral, effect| ParamSpec {
+            name,
+            lower,
+            upper,
+            neutral,
+            effect,
+        };
+        let mut specs = vec![
+            spec("log10_s", -2.0, 1.0, -0.5, None),
+            spec("w", 0.0, 1.5, 0.5, None),
+        ];
+        if fixed_n.is_none() {
+            specs.push(spec("n", 0.5, 3.0, 1.0, None));
+        }
+        // The hysteretic state at the first sample, as a fraction of its saturation level:
+        // a recording starts with a history the data do not show.
+        specs.push(spec("g0_frac", -1.0, 1.0, 0.0, None));
+        for &e in &effects {
+            let x = Some(e);
+            match e {
+                Effect::Delay => specs.push(spec("delay_samples", 0.0, 10.0, 0.0, x)),
+                Effect::InputLag => {
+                    // Log scale; the lower end (τ = dt/100) is a wire.
+                    let lo = (0.01 * dt).log10();
+                    specs.push(spec("lag_log10_tau_s", lo, (20.0 * dt).log10(), lo, x))
+                }
+                Effect::Saturation => specs.push(spec("sat_c", 0.0, 2.0, 0.0, x)),
+                Effect::Asymmetry => specs.push(spec("asym_q", -0.3, 0.3, 0.0, x)),
+                Effect::RateDependence => {
+                    specs.push(spec("rate_rho", 0.0, 2.0, 0.0, x));
+                    let (lo, hi) = ((2.0 * dt).log10(), (0.5 * t).max(4.0 * dt).log10());
+                    specs.push(spec("rate_log10_tau_s", lo, hi, 0.5 * (lo + hi), x));
+                }
+                Effect::Creep => {
+                    let mid = (0.25 * t).max(20.0 * dt).log10();
+                    let (lo, hi) = ((10.0 * dt).log10(), (10.0 * t).max(40.0 * dt).log10());
+                    specs.push(spec("creep_g", 0.0, 0.2, 0.0, x));
+                    specs.push(spec("creep_log10_tau_s", lo, mid, 0.5 * (lo + mid), x));
+                    specs.push(spec("creep_g2", 0.0, 0.2, 0.0, x));
+                    specs.push(spec("creep_log10_tau2_s", mid, hi, 0.5 * (mid + hi), x));
+                }
+                Effect::Dynamics => {
+                    // Modes from fs/200 to Nyquist on a log scale (above it a mode aliases);
+                    // the upper end itself is a wire (no mode).
+                    let hi = (0.5 / dt).log10();
+                    specs.push(spec("mode_log10_hz", (0.005 / dt).log10(), hi, hi, x));
+                    specs.push(spec("mode_zeta", 0.005, 1.5, 0.3, x));
+                }
+                Effect::OffsetDrift => {}
+            }
+        }
+        Structure {
+            effects,
+            fixed_n,
+            ctx,
+            specs,
+        }
+    }
+
+    /// The extensions, in chain order.
+    pub fn effects(&self) -> &[Effect] {
+        &self.effects
+    }
+
+    /// Whether `e` is on.
+    pub fn has(&self, e: Effect) -> bool {
+        self.effects.contains(&e)
+    }
+
+    /// `bouc-wen+creep+dynamics`.
+    pub fn label(&self) -> String {
+        let mut s = String::from("bouc-wen");
+        for e in &self.effects {
+            s.push('+');
+            s.push_str(e.name());
+        }
+        s
+    }
+
+    /// The data scales.
+    pub fn context(&self) -> &Context {
+        &self.ctx
+    }
+
+    /// The pinned exponent, if any.
+    pub fn fixed_n(&self) -> Option<f64> {
+        self.fixed_n
+    }
+
+    /// The shape parameters the optimizer searches, in vector order.
+    pub fn specs(&self) -> &[ParamSpec] {
+        &self.specs
+    }
+
+    /// Names of the linear coefficients, in [`LinearFit::coef`] order.
+    pub fn linear_names(&self) -> Vec<&'static str> {
+        let mut v = vec!["d_e", "d0", "alpha"];
+        if self.has(Effect::OffsetDrift) {
+            v.extend(["drift_a1", "drift_a2"]);
+        }
+        v
+    }
+
+    /// Parameters counted by information criteria: shape plus linear.
+    pub fn n_params(&self) -> usize {
+        self.specs.len() + self.linear_names().len()
+    }
+
+    /// The same structure with `e` added (use [`Self::embed`] for the nested start).
+    pub fn extended(&self, e: Effect) -> Structure {
+        let mut effects = self.effects.clone();
+        effects.push(e);
+        Structure::new(&effects, self.fixed_n, self.ctx)
+    }
+
+    /// `theta` (a shape vector of this structure) carried into `other`, which must contain
+    /// every effect of this one: shared parameters copied, new ones at their neutral values.
+    pub fn embed(&self, theta: &[f64], other: &Structure) -> Vec<f64> {
+        other
+            .specs
+            .iter()
+            .map(|s| {
+                self.specs
+                    .iter()
+                    .position(|m| m.name == s.name)
+                    .map_or(s.neutral, |i| theta[i])
+            })
+            .collect()
+    }
+
+    fn shape(&self, theta: &[f64]) -> Shape {
+        let mut sh = Shape {
+            s: 10f64.powf(-0.5),
+            w: 0.5,
+            n: self.fixed_n.unwrap_or(1.0),
+            g0: 0.0,
+            delay: 0.0,
+            lag: 0.0,
+            sat_c: 0.0,
+            q: 0.0,
+            rho: 0.0,
+            tau_r: 1.0,
+            creep_g: 0.0,
+            creep_tau: 1.0,
+            creep_g2: 0.0,
+            creep_tau2: 1.0,
+            mode_p: 0.0,
+            zeta: 0.3,
+        };
+        for (spec, &x) in self.specs.iter().zip(theta) {
+            match spec.name {
+                "log10_s" => sh.s = 10f64.powf(x),
+                "w" => sh.w = x,
+                "n" => sh.n = x,
+                "g0_frac" => sh.g0 = x,
+                "delay_samples" => sh.delay = x,
+                "lag_log10_tau_s" => {
+                    // The bottom of the range is no lag at all.
+                    sh.lag = if x <= spec.lower + 1e-9 {
+                        0.0
+                    } else {
+                        10f64.powf(x)
+                    }
+                }
+                "sat_c" => sh.sat_c = x,
+                "asym_q" => sh.q = x,
+                "rate_rho" => sh.rho = x,
+                "rate_log10_tau_s" => sh.tau_r = 10f64.powf(x),
+                "creep_g" => sh.creep_g = x,
+                "creep_log10_tau_s" => sh.creep_tau = 10f64.powf(x),
+                "creep_g2" => sh.creep_g2 = x,
+                "creep_log10_tau2_s" => sh.creep_tau2 = 10f64.powf(x),
+                "mode_log10_hz" => {
+                    sh.mode_p = if x >= spec.upper - 1e-9 {
+                        0.0
+                    } else {
+                        1.0 / (2.0 * std::f64::consts::PI * 10f64.powf(x))
+                    }
+                }
+                "mode_zeta" => sh.zeta = x,
+                _ => {}
+            }
+        }
+        sh
+    }
+
+    /// The `g`-form Bouc-Wen shape (`α = 1`, `d_e = d0 = 0`).
+    fn kernel(&self, sh: &Shape) -> BoucWenKernel {
+        let sigma = (sh.s * self.ctx.u_ref).powf(-sh.n);
+        BoucWenKernel::new(&BoucWenParams {
+            d_e: 0.0,
+            alpha: 1.0,
+            beta: sh.w * sigma,
+            gamma: (1.0 - sh.w) * sigma,
+            n: sh.n,
+            d0: 0.0,
+        })
+    }
+
+    /// Simulates the regressor columns on input `u`: `[v, 1, -(1+ρr) α-free g]` after the
+    /// post-hysteresis filters, plus the drift columns; column-major, `cols[j][k]`.
+    fn columns(&self, theta: &[f64], u: &[f64]) -> (Vec<Vec<f64>>, Status) {
+        let n = u.len();
+        let sh = self.shape(theta);
+        let ctx = &self.ctx;
+        let dt = ctx.dt;
+        let mut cv = vec![0.0; n];
+        let mut cg = vec![0.0; n];
+        let mut status = Status::Ok;
+        if n == 0 {
+            return (vec![cv, vec![], cg], status);
+        }
+        let finite_shape = [
+            sh.s,
+            sh.w,
+            sh.n,
+            sh.delay,
+            sh.lag,
+            sh.sat_c,
+            sh.q,
+            sh.rho,
+            sh.tau_r,
+            sh.creep_g,
+            sh.creep_tau,
+            sh.creep_g2,
+            sh.creep_tau2,
+            sh.mode_p,
+            sh.zeta,
+        ]
+        .iter()
+        .all(|x| x.is_finite());
+        let kernel = self.kernel(&sh);
+        let limit = if sh.sat_c > 0.0 {
+            ctx.u_ref / sh.sat_c
+        } else {
+            f64::INFINITY
+        };
+        let drive = |x: f64| {
+            let x = x.clamp(-limit, limit);
+            x + sh.q * x * x / ctx.u_ref
+        };
+        let mut delay = (self.has(Effect::Delay) && sh.delay > 0.0)
+            .then(|| Delay::new(sh.delay.clamp(0.0, 1e4) * dt, dt));
+        let mut lag =
+            (self.has(Effect::InputLag) && sh.lag > 0.0).then(|| LowPass::new(sh.lag, dt));
+        let mut rate =
+            (self.has(Effect::RateDependence) && sh.rho != 0.0).then(|| LowPass::new(sh.tau_r, dt));
+        let exp_tau = lag.as_ref().map(|_| sh.lag);
+        let with_hold_lp = |l: LowPass| match exp_tau {
+            Some(t) => l.with_exp_hold(t),
+            None => l,
+        };
+        let mut creep: Vec<(f64, LowPass, LowPass)> = if self.has(Effect::Creep) {
+            [(sh.creep_g, sh.creep_tau), (sh.creep_g2, sh.creep_tau2)]
+                .into_iter()
+                .filter(|(g, _)| *g != 0.0)
+                .map(|(g, tau)| {
+                    (
+                        g,
+                        with_hold_lp(LowPass::new(tau, dt)),
+                        with_hold_lp(LowPass::new(tau, dt)),
+                    )
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let mut mode = (self.has(Effect::Dynamics) && sh.mode_p > 0.0).then(|| {
+            let f = 1.0 / (2.0 * std::f64::consts::PI * sh.mode_p);
+            let mk = || {
+                let m = Mode::new(f, sh.zeta.max(0.0), dt);
+                match exp_tau {
+                    Some(t) => m.with_exp_hold(t),
+                    None => m,
+                }
+            };
+            (mk(), mk())
+        });
+
+        // Initial state: every block at rest at the first sample.
+        let u0 = u[0];
+        if let Some(d) = &mut delay {
+            d.settle(u0);
+        }
+        if let Some(l) = &mut lag {
+            l.settle(u0);
+        }
+        let v0 = drive(u0);
+        if let Some(r) = &mut rate {
+            r.settle(0.0);
+        }
+        for (_, a, b) in &mut creep {
+            a.settle(v0);
+            b.settle(0.0);
+        }
+        if let Some((a, b)) = &mut mode {
+            a.settle(v0);
+            b.settle(0.0);
+        }
+        let bound = 1e6 * (1.0 + ctx.u_ref) * (1.0 + u.iter().fold(0.0f64, |m, x| m.max(x.abs())));
+        let mut g = sh.g0.clamp(-1.0, 1.0) * sh.s * ctx.u_ref;
+        let mut v_prev = v0;
+        for k in 0..n {
+            let mut x = u[k];
+            if let Some(d) = &mut delay {
+                x = d.step(x);
+            }
+            if let Some(l) = &mut lag {
+                x = l.step(x);
+            }
+            let v = drive(x);
+            g = kernel.advance(g, v - v_prev);
+            let mut hv = g;
+            if let Some(r) = &mut rate {
+                let rr = r.step((v - v_prev).abs() / dt) / ctx.rate_ref;
+                hv *= 1.0 + sh.rho * rr;
+            }
+            v_prev = v;
+            let (mut a, mut b) = (v, -hv);
+            let (a0, b0) = (a, b);
+            for (gain, ca, cb) in &mut creep {
+                let (la, lb) = if exp_tau.is_some() {
+                    (ca.step_exp(a0), cb.step_exp(b0))
+                } else {
+                    (ca.step(a0), cb.step(b0))
+                };
+                a += *gain * la;
+                b += *gain * lb;
+            }
+            if let Some((ma, mb)) = &mut mode {
+                if exp_tau.is_some() {
+                    a = ma.step_exp(a);
+                    b = mb.step_exp(b);
+                } else {
+                    a = ma.step(a);
+                    b = mb.step(b);
+                }
+            }
+            if !(finite_shape && a.is_finite() && b.is_finite() && g.abs() <= bound) {
+                status = Status::Unstable { at: k };
+                cv[k..].fill(0.0);
+                cg[k..].fill(0.0);
+                break;
+            }
+            cv[k] = a;
+            cg[k] = b;
+        }
+        let mut cols = vec![cv, vec![1.0; n], cg];
+        if self.has(Effect::OffsetDrift) {
+            let t: Vec<f64> = (0..n).map(|k| k as f64 * dt / ctx.t_ref).collect();
+            cols.push(t.iter().map(|x| x * x).collect());
+            cols.insert(3, t);
+        }
+        (cols, status)
+    }
+
+    /// Fits the linear coefficients of shape `theta` to `(u, y)` by least squares and
+    /// returns them with the cost `Σ e²/2`. Always finite: an unstable shape costs
+    /// `cost_cap(y) (2 - at/N)`, above every stable cost and higher the earlier it fails.
+    pub fn fit_linear(&self, theta: &[f64], u: &[f64], y: &[f64]) -> LinearFit {
+        let len = u.len().min(y.len());
+        let (u, y) = (&u[..len], &y[..len]);
+        let cap = cost_cap(y);
+        let (cols, status) = self.columns(theta, u);
+        let ncoef = cols.len();
+        if let Status::Unstable { at } = status {
+            return LinearFit {
+                coef: vec![0.0; ncoef],
+                cost: cap * (2.0 - at as f64 / len.max(1) as f64),
+                status,
+            };
+        }
+        let coef = least_squares(&cols, y);
+        let mut j = 0.0;
+        for k in 0..len {
+            let m: f64 = cols.iter().zip(&coef).map(|(c, b)| c[k] * b).sum();
+            let e = y[k] - m;
+            j += 0.5 * e * e;
+        }
+        let cost = if j.is_finite() { j.min(cap) } else { cap };
+        LinearFit { coef, cost, status }
+    }
+
+    /// Model output for input `u` with shape `theta` and linear coefficients `coef` (from
+    /// [`Self::fit_linear`] on training data); unstable samples hold the last finite value.
+    pub fn simulate(&self, theta: &[f64], coef: &[f64], u: &[f64]) -> (Vec<f64>, Status) {
+        let (cols, status) = self.columns(theta, u);
+        let mut out: Vec<f64> = (0..u.len())
+            .map(|k| cols.iter().zip(coef).map(|(c, b)| c[k] * b).sum())
+            .collect();
+        if let Status::Unstable { at } = status {
+            let last = if at > 0 { out[at - 1] } else { 0.0 };
+            out[at..].fill(last);
+        }
+        (out, status)
+    }
+
+    /// Parameters by name in the seed's form where it applies (`d_e`, `alpha`, `beta`,
+    /// `gamma`, `n`, `d0` of eq. 3.1-3.3 on the data's own units), then each extension's in
+    /// physical units (seconds, Hz, fractions).
+    pub fn named_params(&self, theta: &[f64], coef: &[f64]) -> Vec<(String, f64)> {
+        let sh = self.shape(theta);
+        let sigma = (sh.s * self.ctx.u_ref).powf(-sh.n);
+        let alpha = coef.get(2).copied().unwrap_or(0.0);
+        let scale = alpha.abs().powf(1.0 - sh.n);
+        let mut v: Vec<(String, f64)> = vec![
+            ("d_e".into(), coef[0]),
+            ("alpha".into(), alpha),
+            ("beta".into(), sh.w * sigma * scale),
+            ("gamma".into(), (1.0 - sh.w) * sigma * scale),
+            ("n".into(), sh.n),
+            ("d0".into(), coef[1]),
+            ("h0".into(), alpha * sh.g0 * sh.s * self.ctx.u_ref),
+        ];
+        let dt = self.ctx.dt;
+        for &e in &self.effects {
+            match e {
+                Effect::Delay => v.push(("delay_s".into(), sh.delay * dt)),
+                Effect::InputLag => v.push(("lag_tau_s".into(), sh.lag)),
+                Effect::Saturation => v.push((
+                    "saturation_limit".into(),
+                    if sh.sat_c > 0.0 {
+                        self.ctx.u_ref / sh.sat_c
+                    } else {
+                        f64::INFINITY
+                    },
+                )),
+                Effect::Asymmetry => {
+                    v.push(("asymmetry_q_per_input".into(), sh.q / self.ctx.u_ref))
+                }
+                Effect::RateDependence => {
+                    v.push(("rate_rho".into(), sh.rho));
+                    v.push(("rate_tau_s".into(), sh.tau_r));
+                }
+                Effect::Creep => {
+                    v.push(("creep_gain".into(), sh.creep_g));
+                    v.push(("creep_tau_s".into(), sh.creep_tau));
+                    v.push(("creep_gain_slow".into(), sh.creep_g2));
+                    v.push(("creep_tau_slow_s".into(), sh.creep_tau2));
+                }
+                Effect::Dynamics => {
+                    let f = if sh.mode_p > 0.0 {
+                        1.0 / (2.0 * std::f64::consts::PI * sh.mode_p)
+                    } else {
+                        f64::INFINITY
+                    };
+                    v.push(("mode_freq_hz".into(), f));
+                    v.push(("mode_zeta".into(), sh.zeta));
+                }
+                Effect::OffsetDrift => {
+                    let t = self.ctx.t_ref;
+                    v.push(("drift_per_s".into(), coef[3] / t));
+                    v.push(("drift_per_s2".into(), coef[4] / (t * t)));
+                }
+            }
+        }
+        v
+    }
+}
+
+/// Least squares `min |y - Σ b_j c_j|` by modified Gram-Schmidt with one
+/// reorthogonalisation; columns that are (numerically) in the span of earlier ones get 0.
+pub fn least_squares(cols: &[Vec<f64>], y: &[f64]) -> Vec<f64> {
+    let m = cols.len();
+    let n = y.len();
+    let mut q: Vec<Option<Vec<f64>>> = Vec::with_capacity(m);
+    let mut r = vec![vec![0.0; m]; m];
+    let mut keep = vec![false; m];
+    for j in 0..m {
+        let mut v = cols[j][..n].to_vec();
+        let norm0 = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        for _ in 0..2 {
+            for (i, qi) in q.iter().enumerate() {
+                let Some(qi) = qi.as_ref() else { continue };
+                let d: f64 = qi.iter().zip(&v).map(|(a, b)| a * b).sum();
+                r[i][j] += d;
+                v.iter_mut().zip(qi).for_each(|(x, a)| *x -= d * a);
+            }
+        }
+        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if norm > 1e-10 * norm0 && norm.is_finite() && norm > 0.0 {
+            r[j][j] = norm;
+            v.iter_mut().for_each(|x| *x /= norm);
+            keep[j] = true;
+            q.push(Some(v));
+        } else {
+            q.push(None);
+        }
+    }
+    let qty: Vec<f64> = q
+        .iter()
+        .map(|qi| {
+            qi.as_ref()
+                .map_or(0.0, |qi| qi.iter().zip(y).map(|(a, b)| a * b).sum())
+        })
+        .collect();
+    let mut b = vec![0.0; m];
+    for j in (0..m).rev() {
+        if !keep[j] {
+            continue;
+        }
+        let s: f64 = (j + 1..m).map(|k| r[j][k] * b[k]).sum();
+        b[j] = (qty[j] - s) / r[j][j];
+    }
+    if b.iter().all(|x| x.is_finite()) {
+        b
+    } else {
+        vec![0.0; m]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::physics::bouc_wen;
+    use crate::physics::twin::{self, TwinConfig};
+
+    fn sine(n: usize, f: f64, dt: f64) -> Vec<f64> {
+        (0..n)
+            .map(|k| 2.35 - 2.3 * (2.0 * std::f64::consts::PI * f * k as f64 * dt).cos())
+            .collect()
+    }
+
+    #[test]
+    fn plain_model_equals_the_seed_bouc_wen() {
+        // α-scaled g-form with n ≠ 1 reproduces bouc_wen::simulate of the seed's form.
+        let dt = 1e-3;
+        let u = sine(1500, 3.0, dt);
+        let ctx = Context::from_training(&u, dt);
+        for n in [1.0, 0.7, 1.6] {
+            let p = BoucWenParams {
+                d_e: 0.15,
+                alpha: 0.05,
+                beta: 0.4,
+                gamma: 0.25,
+                n,
+                d0: 0.01,
+            };
+            let mut y = vec![0.0; u.len()];
+            bouc_wen::simulate(&p, &u, &mut y);
+            let st = Structure::new(&[], None, ctx);
+            // Shape of p: σ = (β'+γ') = (β+γ) α^(n-1) = (s u_ref)^-n.
+            let sigma = (p.beta + p.gamma) * p.alpha.powf(n - 1.0);
+            let s = sigma.powf(-1.0 / n) / ctx.u_ref;
+            let theta = [s.log10(), p.beta / (p.beta + p.gamma), n, 0.0];
+            let fit = st.fit_linear(&theta, &u, &y);
+            assert!(fit.cost < 1e-20, "n={n}: {}", fit.cost);
+            let named = st.named_params(&theta, &fit.coef);
+            let get = |k: &str| named.iter().find(|x| x.0 == k).unwrap().1;
+            for (k, want) in [
+                ("d_e", p.d_e),
+                ("alpha", p.alpha),
+                ("beta", p.beta),
+                ("gamma", p.gamma),
+                ("d0", p.d0),
+            ] {
+                assert!((get(k) - want).abs() < 1e-8 * (1.0 + want.abs()), "{k}");
+            }
+        }
+    }
+
+    #[test]
+    fn extensions_at_neutral_values_are_the_plain_model() {
+        let dt = 1e-3;
+        let u = sine(800, 5.0, dt);
+        let y: Vec<f64> = u.iter().map(|x| 0.15 * x + 0.001 * x * x).collect();
+        let ctx = Context::from_training(&u, dt);
+        let plain = Structure::new(&[], Some(1.0), ctx);
+        let theta = [-0.4, 0.6, 0.1];
+        let base = plain.fit_linear(&theta, &u, &y);
+        let all = Structure::new(&Effect::ALL, Some(1.0), ctx);
+        let nested = plain.embed(&theta, &all);
+        let ext = all.fit_linear(&nested, &u, &y);
+        // Offset-drift adds two free columns, so its cost can only be lower.
+        assert!(ext.cost <= base.cost * (1.0 + 1e-12));
+        for e in Effect::ALL {
+            if e == Effect::OffsetDrift {
+                continue;
+            }
+            let one = Structure::new(&[e], Some(1.0), ctx);
+            let th = plain.embed(&theta, &one);
+            let f = one.fit_linear(&th, &u, &y);
+            assert!(
+                (f.cost - base.cost).abs() <= 1e-10 * base.cost,
+                "{}: {} vs {}",
+                e.name(),
+                f.cost,
+                base.cost
+            );
+        }
+    }
+
+    /// Each twin part is reproduced by the matching extension at the twin's values.
+    #[test]
+    fn extensions_reproduce_the_twin() {
+        let dt = 1e-3;
+        // From 0 V, where the twin rests (the model starts virgin at u[0]).
+        let u: Vec<f64> = sine(1500, 4.0, dt).iter().map(|x| x - 0.05).collect();
+        let ctx = Context::from_training(&u, dt);
+        let base = "amp=off,mode=off,noise=off,quantization=off";
+        let p = TwinConfig::default().command_scale_bouc_wen();
+        let sigma = p.beta + p.gamma; // n = 1
+        let s = (1.0 / sigma / ctx.u_ref).log10();
+        let w = p.beta / (p.beta + p.gamma);
+        let gain = 15.0;
+        let cases: Vec<(&str, Vec<Effect>, Vec<(&str, f64)>)> = vec![
+            ("", vec![], vec![]),
+            (
+                "amp=on,amp.cutoff_hz=500",
+                vec![Effect::InputLag],
+                vec![(
+                    "lag_log10_tau_s",
+                    (1.0 / (2.0 * std::f64::consts::PI * 500.0)).log10(),
+                )],
+            ),
+            (
+                "delay=0.002",
+                vec![Effect::Delay],
+                vec![("delay_samples", 2.0)],
+            ),
+            (
+                "saturation.limit=60",
+                vec![Effect::Saturation],
+                vec![("sat_c", ctx.u_ref * gain / 60.0)],
+            ),
+            (
+                "asymmetry=0.001",
+                vec![Effect::Asymmetry],
+                vec![("asym_q", 0.001 * gain * ctx.u_ref)],
+            ),
+            (
+                "mode=on,mode.freq_hz=150",
+                vec![Effect::Dynamics],
+                vec![
+                    ("mode_log10_hz", 150f64.log10()),
+                    ("mode_zeta", 0.04),
+                ],
+            ),
+            (
+                "creep=on,creep.gain_slow=0.03,creep.tau_fast=0.3,creep.gain_fast=0.05",
+                vec![Effect::Creep],
+                vec![
+                    ("creep_g", 0.05),
+                    ("creep_log10_tau_s", 0.3f64.log10()),
+                    ("creep_g2", 0.03),
+                    ("creep_log10_tau2_s", 20f64.log10()),
+                ],
+            ),
+        ];
+        for (ov, effects, values) in cases {
+            let cfg = TwinConfig::parse_overrides(&format!("{base},{ov}")).unwrap();
+            let y = twin::simulate(&cfg, &u, dt, 0);
+            let st = Structure::new(&effects, Some(1.0), ctx);
+            let mut theta: Vec<f64> = st.specs().iter().map(|s| s.neutral).collect();
+            theta[0] = s;
+            theta[1] = w;
+            for (name, v) in values {
+                let i = st.specs().iter().position(|s| s.name == name).unwrap();
+                theta[i] = v;
+            }
+            let fit = st.fit_linear(&theta, &u, &y);
+            let rms = (2.0 * fit.cost / u.len() as f64).sqrt();
+            assert!(rms < 2e-6, "{ov}: rms {rms}");
+            assert!((fit.coef[0] - gain * 0.0103).abs() < 1e-3, "{ov}");
+        }
+    }
+
+    #[test]
+    fn drift_columns_recover_a_linear_drift() {
+        let dt = 1e-3;
+        let u = sine(2000, 2.0, dt);
+        let ctx = Context::from_training(&u, dt);
+        let plain = Structure::new(&[], Some(1.0), ctx);
+        let theta = [-0.4, 0.6, 0.0];
+        let (y0, _) = plain.simulate(&theta, &[0.15, 0.0, 0.05], &u);
+        let y: Vec<f64> = y0
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + 3e-3 * k as f64 * dt)
+            .collect();
+        let st = Structure::new(&[Effect::OffsetDrift], Some(1.0), ctx);
+        let fit = st.fit_linear(&theta, &u, &y);
+        assert!(fit.cost < 1e-20);
+        let named = st.named_params(&theta, &fit.coef);
+        let rate = named.iter().find(|x| x.0 == "drift_per_s").unwrap().1;
+        assert!((rate - 3e-3).abs() < 1e-9, "{rate}");
+    }
+
+    #[test]
+    fn hostile_shapes_give_finite_costs() {
+        let dt = 1e-3;
+        let u = sine(300, 8.0, dt);
+        let y: Vec<f64> = u.iter().map(|x| 0.15 * x).collect();
+        let ctx = Context::from_training(&u, dt);
+        let st = Structure::new(&Effect::ALL, None, ctx);
+        let cap = cost_cap(&y);
+        let d = st.specs().len();
+        for v in [f64::NAN, f64::INFINITY, -1e300, 1e300, 0.0, -5.0] {
+            for i in 0..d {
+                let mut theta: Vec<f64> = st.specs().iter().map(|s| s.neutral).collect();
+                theta[i] = v;
+                let f = st.fit_linear(&theta, &u, &y);
+                assert!(f.cost.is_finite() && f.cost >= 0.0, "{i}={v}: {}", f.cost);
+                assert!(f.cost <= 2.0 * cap);
+                let (out, _) = st.simulate(&theta, &f.coef, &u);
+                assert!(out.iter().all(|x| x.is_finite()));
+            }
+        }
+        // Bounds: every corner is finite too.
+        for corner in 0..(1u32 << d.min(10)) {
+            let theta: Vec<f64> = st
+                .specs()
+                .iter()
+                .enumerate()
+                .map(|(i, s)| {
+                    if corner >> (i % 10) & 1 == 1 {
+                        s.upper
+                    } else {
+                        s.lower
+                    }
+                })
+                .collect();
+            assert!(st.fit_linear(&theta, &u, &y).cost.is_finite());
+        }
+    }
+
+    #[test]
+    fn least_squares_handles_collinear_columns() {
+        let a: Vec<f64> = (0..50).map(|k| k as f64).collect();
+        let b = vec![1.0; 50];
+        let c: Vec<f64> = a.iter().map(|x| 2.0 * x + 1.0).collect();
+        let y: Vec<f64> = a.iter().map(|x| 3.0 * x - 2.0).collect();
+        let coef = least_squares(&[a.clone(), b, c], &y);
+        let fit: Vec<f64> = (0..50)
+            .map(|k| coef[0] * a[k] + coef[1] + coef[2] * (2.0 * a[k] + 1.0))
+            .collect();
+        for (f, t) in fit.iter().zip(&y) {
+            assert!((f - t).abs() < 1e-9);
+        }
+        assert_eq!(coef[2], 0.0);
+    }
+}
