@@ -285,6 +285,11 @@ fn shipped_suites_are_valid() {
                 );
                 continue;
             }
+            if optbench::control::suite::is_control_suite(&text) {
+                optbench::control::suite::ControlSuite::load(&path)
+                    .unwrap_or_else(|e| panic!("{e}"));
+                continue;
+            }
             optbench::suite::Suite::load(&path).unwrap_or_else(|e| panic!("{e}"));
         }
     }

@@ -202,3 +202,209 @@ fn bad_input_exits_2_and_writes_nothing() {
         assert!(!out.exists(), "{a:?} wrote {}", out.display());
     }
 }
+
+/// A control suite small enough for a test: 2 trials, 1.5 s references, quick model fits.
+const TINY_SUITE: &str = r#"name = "tiny-control"
+seed = 5
+trials = 2
+
+[control]
+references = ["sweep-1-2hz", { id = "sine3", spec = "sine:freq=3,amp=0.2,offset=0.3,phase=-1.5707963267948966", duration = 1.5 }]
+transient = 0.5
+figures = FIGURES
+
+[[controller]]
+id = "IMC"
+kind = "imc-rbf"
+model_budget = 600
+model_duration = 1.0
+
+[[controller]]
+id = "PID"
+kind = "pid"
+ki = 0.4
+kp = 0.3
+kd = 0.2
+
+[[plant]]
+id = "twin"
+
+[[plant]]
+id = "mismatch"
+twin = "creep=on"
+model_twin = "mode=off"
+references = ["sine3"]
+
+[[table]]
+id = "t"
+title = "Tiny table"
+columns = ["3 Hz"]
+rows = [{ label = "IMC", cells = ["IMC/twin/sine3"], seed = [0.003] }]
+"#;
+
+fn write_suite(dir: &Path, figures: bool) -> std::path::PathBuf {
+    let p = dir.join("tiny.toml");
+    std::fs::write(&p, TINY_SUITE.replace("FIGURES", &figures.to_string())).unwrap();
+    p
+}
+
+#[test]
+fn control_suite_runs_through_optbench_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let suite = write_suite(tmp.path(), true);
+    let out = tmp.path().join("res");
+    let o = optbench(
+        &[
+            "run",
+            suite.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--threads",
+            "2",
+        ],
+        tmp.path(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("Tiny table") && text.contains("(seed 0.00300)"),
+        "{text}"
+    );
+    // 2 controllers x (2 references on twin + 1 on mismatch) x 2 trials.
+    let runs = std::fs::read_to_string(out.join("runs.jsonl")).unwrap();
+    assert_eq!(runs.lines().count(), 12);
+    // One model per (identification twin, trial): default and mode=off.
+    let models = std::fs::read_to_string(out.join("models.jsonl")).unwrap();
+    assert_eq!(models.lines().count(), 4);
+    // Controllers share the noise of a (reference, plant, trial); IMC runs of one trial
+    // share the model across references.
+    let recs: Vec<Value> = runs
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let find = |c: &str, p: &str, r: &str, t: u64| {
+        recs.iter()
+            .find(|x| {
+                x["controller"] == c && x["plant"] == p && x["reference"] == r && x["trial"] == t
+            })
+            .unwrap()
+            .clone()
+    };
+    assert_eq!(
+        find("IMC", "twin", "sine3", 1)["noise_seed"],
+        find("PID", "twin", "sine3", 1)["noise_seed"]
+    );
+    assert_ne!(
+        find("IMC", "twin", "sine3", 0)["noise_seed"],
+        find("IMC", "twin", "sine3", 1)["noise_seed"]
+    );
+    assert_eq!(
+        find("IMC", "twin", "sine3", 0)["model_seed"],
+        find("IMC", "twin", "sweep-1-2hz", 0)["model_seed"]
+    );
+    assert_ne!(
+        find("IMC", "twin", "sine3", 0)["model_seed"],
+        find("IMC", "mismatch", "sine3", 0)["model_seed"]
+    );
+    for f in [
+        "report.md",
+        "summary.json",
+        "provenance.json",
+        "suite.toml",
+        "tables/t.md",
+        "tables/t.tex",
+        "tables/cells.csv",
+        "signals/IMC_twin_sine3_trial0.csv",
+        "figures/IMC_twin_sine3_time.png",
+        "figures/IMC_twin_sine3_compensation.svg",
+        "figures/PID_mismatch_sine3_compensation-transient.png",
+        "figures/rmse_twin_sweep-1-2hz.png",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let cells: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(cells.as_array().unwrap().len(), 6);
+}
+
+#[test]
+fn control_suite_same_seed_same_bytes_on_any_thread_count() {
+    let tmp = tempfile::tempdir().unwrap();
+    let suite = write_suite(tmp.path(), false);
+    let run = |threads: &str, seed: &str| {
+        let out = tmp.path().join(format!("r{threads}-{seed}"));
+        let o = optbench(
+            &[
+                "run",
+                suite.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--threads",
+                threads,
+                "--seed",
+                seed,
+                "-q",
+            ],
+            tmp.path(),
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        ["runs.jsonl", "models.jsonl", "summary.json", "tables/t.md"]
+            .map(|f| std::fs::read(out.join(f)).unwrap())
+    };
+    let a = run("1", "5");
+    let b = run("2", "5");
+    assert_eq!(a, b);
+    let c = run("2", "6");
+    assert_ne!(a[0], c[0]);
+}
+
+#[test]
+fn bad_control_suites_name_file_line_and_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    let base = TINY_SUITE.replace("FIGURES", "false");
+    for (from, to, needle) in [
+        (
+            "kind = \"pid\"",
+            "kind = \"lqr\"",
+            ":18: unknown controller kind `lqr`",
+        ),
+        (
+            "ki = 0.4",
+            "kx = 0.4",
+            ":19: controller `PID`: controller `pid`: unknown parameter `kx`",
+        ),
+        (
+            "twin = \"creep=on\"",
+            "twin = \"creep=maybe\"",
+            "plant `mismatch`",
+        ),
+        (
+            "\"IMC/twin/sine3\"",
+            "\"IMC/mismatch/sweep-1-2hz\"",
+            "does not run",
+        ),
+        ("transient = 0.5", "transient = 2.0", "`transient` = 2"),
+        ("model_budget = 600", "model_budget = 0", "model_budget"),
+        (
+            "references = [\"sine3\"]",
+            "references = [\"sine9\"]",
+            "`references` names `sine9`",
+        ),
+    ] {
+        assert!(base.contains(from), "{from}");
+        let p = tmp.path().join("bad.toml");
+        std::fs::write(&p, base.replace(from, to)).unwrap();
+        let out = tmp.path().join("never");
+        let o = optbench(
+            &["run", p.to_str().unwrap(), "--out", out.to_str().unwrap()],
+            tmp.path(),
+        );
+        assert_eq!(o.status.code(), Some(2), "{to}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            err.contains("bad.toml") && err.contains(needle),
+            "{to}: {err}"
+        );
+        assert!(!out.exists());
+    }
+}

@@ -72,7 +72,7 @@ impl Controller {
     fn start(&mut self, u0: f64) {
         if let Controller::Imc(c) = self {
             c.ym = c.model.step(u0);
-            c.jacobian = c.model.jacobian();
+            c.jacobian = c.net.training_sensitivity(c.model.jacobian());
         }
     }
 
@@ -87,7 +87,7 @@ impl Controller {
                 // A non-finite command ends the run; keep the model finite meanwhile.
                 if u.is_finite() {
                     c.ym = c.model.step(u);
-                    c.jacobian = c.model.jacobian();
+                    c.jacobian = c.net.training_sensitivity(c.model.jacobian());
                 }
                 u
             }

@@ -29,6 +29,13 @@ pub struct NetConfig {
     pub width: f64,
     /// Initial command (V): the initial weights make `u = u0` at `z = 0`.
     pub u0: f64,
+    /// Lower bound (mm/V) on the model sensitivity the network is trained through: the
+    /// prior knowledge that a piezo extends with voltage, against fits whose sensitivity
+    /// has the wrong sign where data are thin (near 0 V). None: the model's value as is.
+    pub sensitivity_floor: Option<f64>,
+    /// Upper bound (mm/V), likewise; with `floor = ceiling` the model no longer shapes the
+    /// training at all (an ablation: does the internal model matter?).
+    pub sensitivity_ceiling: Option<f64>,
 }
 
 impl Default for NetConfig {
@@ -41,6 +48,8 @@ impl Default for NetConfig {
             centre_spread: 1.0,
             width: 1.0,
             u0: 0.0,
+            sensitivity_floor: None,
+            sensitivity_ceiling: None,
         }
     }
 }
@@ -69,6 +78,19 @@ impl NetConfig {
                 "centre_spread must be >= 0, got {}",
                 self.centre_spread
             ));
+        }
+        if let Some(f) = self.sensitivity_floor
+            && !(f.is_finite() && f > 0.0)
+        {
+            return Err(format!("sensitivity_floor must be > 0, got {f}"));
+        }
+        if let Some(c) = self.sensitivity_ceiling {
+            if !(c.is_finite() && c > 0.0) {
+                return Err(format!("sensitivity_ceiling must be > 0, got {c}"));
+            }
+            if self.sensitivity_floor.is_some_and(|f| f > c) {
+                return Err("sensitivity_floor must be <= sensitivity_ceiling".into());
+            }
         }
         if !self.u0.is_finite() {
             return Err(format!("u0 must be finite, got {}", self.u0));
@@ -128,6 +150,19 @@ impl RbfController {
             pending: false,
             e_prev: 0.0,
         }
+    }
+
+    /// The sensitivity (mm/V) training goes through, from the model's: within
+    /// `[sensitivity_floor, sensitivity_ceiling]` where those are set.
+    pub fn training_sensitivity(&self, model: f64) -> f64 {
+        let mut j = model;
+        if let Some(f) = self.cfg.sensitivity_floor {
+            j = j.max(f);
+        }
+        if let Some(c) = self.cfg.sensitivity_ceiling {
+            j = j.min(c);
+        }
+        j
     }
 
     /// The parameter vector.

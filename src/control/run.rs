@@ -49,6 +49,14 @@ pub const IMC_KEYS: &[(&str, &str)] = &[
         "held (Σ ∂y/∂u over the input lags, default) or instant (∂y(k)/∂u(k))",
     ),
     (
+        "sensitivity_floor",
+        "mm/V; train through max(model sensitivity, floor) (default: none)",
+    ),
+    (
+        "sensitivity_ceiling",
+        "mm/V; train through min(model sensitivity, ceiling) (default: none)",
+    ),
+    (
         "model_mode",
         "internal model fitted on free-run (default) or one-step (seed) cost",
     ),
@@ -139,6 +147,10 @@ impl ControllerSpec {
                         "centre_spread" => net.centre_spread = number(kind, k, v)?,
                         "width" => net.width = number(kind, k, v)?,
                         "u0" => net.u0 = number(kind, k, v)?,
+                        "sensitivity_floor" => net.sensitivity_floor = Some(number(kind, k, v)?),
+                        "sensitivity_ceiling" => {
+                            net.sensitivity_ceiling = Some(number(kind, k, v)?)
+                        }
                         "sensitivity" => sensitivity = Sensitivity::parse(v.trim())?,
                         "model_mode" => match v.trim() {
                             m @ ("one-step" | "free-run") => model.mode = m.into(),

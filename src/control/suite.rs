@@ -321,6 +321,16 @@ impl ControlSuite {
             let kind = kind.as_str().map(String::from).ok_or_else(|| {
                 Error::at(path, kline, "`kind`: expected a string (imc-rbf or pid)")
             })?;
+            if !super::run::CONTROLLER_KINDS.contains(&kind.as_str()) {
+                return Err(Error::at(
+                    path,
+                    kline,
+                    format!(
+                        "unknown controller kind `{kind}`; valid: {}",
+                        super::run::CONTROLLER_KINDS.join(", ")
+                    ),
+                ));
+            }
             let id = match take(&mut fields, "id") {
                 Some((toml::Value::String(s), _)) => s,
                 Some((_, l)) => return Err(Error::at(path, l, "`id`: expected a string")),

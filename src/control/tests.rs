@@ -195,3 +195,38 @@ fn the_fitted_model_follows_the_linear_twin() {
         m.jacobian()
     );
 }
+
+#[test]
+fn every_listed_imc_key_is_accepted() {
+    use super::run::{ControllerSpec, IMC_KEYS, PID_KEYS};
+    let value = |k: &str| match k {
+        "sensitivity" => "instant",
+        "model_mode" => "one-step",
+        "model_signal" => "sine:freq=1,amp=2,offset=2.35",
+        "momentum" => "0.5",
+        _ => "2",
+    };
+    for (kind, keys) in [("imc-rbf", IMC_KEYS), ("pid", PID_KEYS)] {
+        for (k, _) in keys {
+            let p = vec![(k.to_string(), value(k).to_string())];
+            assert!(ControllerSpec::parse(kind, &p).is_ok(), "{kind}: {k}");
+        }
+    }
+    let clamp = |f: &str, c: &str| {
+        ControllerSpec::parse(
+            "imc-rbf",
+            &[
+                ("sensitivity_floor".into(), f.into()),
+                ("sensitivity_ceiling".into(), c.into()),
+            ],
+        )
+    };
+    assert!(clamp("0.2", "0.1").is_err());
+    let Ok(ControllerSpec::ImcRbf(s)) = clamp("0.05", "0.3") else {
+        panic!("valid clamp refused")
+    };
+    let c = RbfController::new(&s.net);
+    assert_eq!(c.training_sensitivity(-0.1), 0.05);
+    assert_eq!(c.training_sensitivity(0.2), 0.2);
+    assert_eq!(c.training_sensitivity(0.9), 0.3);
+}
