@@ -221,7 +221,7 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         (Mode::OneStepAhead, "one-step"),
         (Mode::FreeRun, "free-run"),
     ] {
-        let rblock = d * 8;
+        let rblock = d * crate::physics::rbf_fast::LANES;
         rows.push(Row {
             name: format!("rbf 3-7-1 {tag}"),
             unit: "M samples/s",
@@ -237,7 +237,7 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
             batched_s: time(cfg.repeats, || batch.costs(&rpop, mode, &mut out)),
             threads_s: time(cfg.repeats, || {
                 rpop.par_chunks(rblock)
-                    .zip(out.par_chunks_mut(8))
+                    .zip(out.par_chunks_mut(crate::physics::rbf_fast::LANES))
                     .for_each(|(p, o)| batch.costs(p, mode, o))
             }),
             threads,

@@ -22,7 +22,7 @@ use super::rbf::{Mode, Narx, RbfNet, error_cap, exponent_factor};
 /// Individuals per free-run block.
 pub const LANES: usize = 16;
 /// Samples per one-step block.
-pub const TLANES: usize = 16;
+pub const TLANES: usize = 32;
 
 /// A recording prepared for batched RBF costs.
 #[derive(Clone, Debug)]
