@@ -359,8 +359,14 @@ impl Suite {
                         ),
                     ));
                 }
-                let local = crate::optimizer::polish_method(polish_with.as_deref())
-                    .map_err(|m| Error::at(path, polish_line.unwrap_or(line), format!("optimizer `{id}`: {m}")))?;
+                let local =
+                    crate::optimizer::polish_method(polish_with.as_deref()).map_err(|m| {
+                        Error::at(
+                            path,
+                            polish_line.unwrap_or(line),
+                            format!("optimizer `{id}`: {m}"),
+                        )
+                    })?;
                 config = Arc::new(crate::optimizer::nelder_mead::PolishedConfig {
                     global: config,
                     share,
@@ -370,7 +376,9 @@ impl Suite {
                 return Err(Error::at(
                     path,
                     l,
-                    format!("optimizer `{id}`: `polish_with` needs `polish` = a budget share in (0, 1)"),
+                    format!(
+                        "optimizer `{id}`: `polish_with` needs `polish` = a budget share in (0, 1)"
+                    ),
                 ));
             }
             optimizers.push(OptimizerEntry {

@@ -44,7 +44,9 @@ pub trait OptimizerConfig: Send + Sync + fmt::Debug {
 pub fn polish_method(name: Option<&str>) -> Result<nelder_mead::LocalSearch, String> {
     match name {
         None | Some("nelder-mead") => Ok(nelder_mead::LocalSearch::default()),
-        Some("lbfgs") => Ok(nelder_mead::LocalSearch::Lbfgs(lbfgs::LbfgsConfig::default())),
+        Some("lbfgs") => Ok(nelder_mead::LocalSearch::Lbfgs(
+            lbfgs::LbfgsConfig::default(),
+        )),
         Some(other) => Err(format!(
             "`polish_with` = \"{other}\": expected \"nelder-mead\" or \"lbfgs\""
         )),
