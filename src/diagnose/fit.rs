@@ -192,8 +192,18 @@ pub fn fit(
             base: best.clone(),
             bounds,
         });
+        // The start, and a grid of 16 points along the first free coordinate (the others at
+        // the start): narrow basins (a lightly damped mode) are then not left to chance.
+        let start: Vec<f64> = free.iter().map(|&i| best[i]).collect();
+        let mut points = vec![start.clone()];
+        let (lo, hi) = (obj.bounds().lower()[free[0]], obj.bounds().upper()[free[0]]);
+        for k in 0..16 {
+            let mut p = start.clone();
+            p[0] = lo + (hi - lo) * (k as f64 + 0.5) / 16.0;
+            points.push(p);
+        }
         let seeded = Seeded {
-            points: vec![free.iter().map(|&i| best[i]).collect()],
+            points,
             inner: PsoConfig {
                 swarm: budget.swarm,
                 ..PsoConfig::default()
@@ -269,7 +279,7 @@ impl Objective for InitialState {
     fn evaluate(&self, x: &[f64]) -> f64 {
         let mut th = self.theta.clone();
         th[self.index] = x[0];
-        let (out, _) = self.st.simulate(&th, &self.coef, &self.u);
+        let (out, _) = self.st.simulate_on(&th, &self.coef, &self.u, &self.y);
         let j: f64 = out
             .iter()
             .zip(&self.y)

@@ -243,7 +243,7 @@ fn evaluate(mut f: Fitted, d: &Data, opts: &Options) -> Evaluated {
     let (out_t, _) = f.structure.simulate(&f.theta, &f.linear.coef, &d.ut);
     let (theta_v, used) = fit::initial_state_for(&f, &d.uv, &d.yv, 60, opts.seed);
     f.evaluations += used;
-    let (out_v, _) = f.structure.simulate(&theta_v, &f.linear.coef, &d.uv);
+    let (out_v, _) = f.structure.simulate_on(&theta_v, &f.linear.coef, &d.uv, &d.yv);
     let ev: Vec<f64> = d.yv.iter().zip(&out_v).map(|(a, b)| a - b).collect();
     let tests = residual::battery(&d.uv, &ev, opts.lags, opts.alpha);
     Evaluated {
@@ -292,7 +292,7 @@ fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> Vec<
     let st = &base.structure;
     let (mt, _) = st.simulate(&base.theta, &base.linear.coef, &d.ut);
     let (theta_v, _) = fit::initial_state_for(base, &d.uv, &d.yv, 60, opts.seed);
-    let (mv, _) = st.simulate(&theta_v, &base.linear.coef, &d.uv);
+    let (mv, _) = st.simulate_on(&theta_v, &base.linear.coef, &d.uv, &d.yv);
     let mut scores: Vec<f64> = (0..opts.bootstrap)
         .into_par_iter()
         .map(|b| {
@@ -321,7 +321,7 @@ fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> Vec<
                 opts.seed ^ (0xb00 + b as u64),
             );
             let (tv, _) = fit::initial_state_for(&refit, &d.uv, &yv, 60, opts.seed);
-            let (ov, _) = st.simulate(&tv, &refit.linear.coef, &d.uv);
+            let (ov, _) = st.simulate_on(&tv, &refit.linear.coef, &d.uv, &yv);
             let ev: Vec<f64> = yv.iter().zip(&ov).map(|(a, b)| a - b).collect();
             residual::score(&residual::battery(&d.uv, &ev, opts.lags, opts.alpha))
         })

@@ -162,8 +162,10 @@ pub fn generate(kind: &CaseKind, seed: u64, seconds: f64) -> Result<(Recording, 
         let v = out.pop().expect("two recordings");
         return Ok((out.pop().expect("two recordings"), v));
     }
+    // Saturation acts on both records: its level is relative to the lower of their peaks.
     let gain = TwinConfig::default().amp.gain;
-    let peak = ut.iter().chain(&uv).fold(0.0f64, |m, x| m.max(x.abs())) * gain;
+    let peak_of = |u: &[f64]| u.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let peak = peak_of(&ut).min(peak_of(&uv)) * gain;
     let cfg = TwinConfig::parse_overrides(&format!("{NULL_TWIN},{}", kind.overrides(peak)))?;
     let t = twin::recording(&cfg, name("train"), ut, dt, seed.wrapping_mul(2))?;
     let v = twin::recording(&cfg, name("validate"), uv, dt, seed.wrapping_mul(2) + 1)?;

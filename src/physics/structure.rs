@@ -225,7 +225,8 @@ impl Structure {
                     let lo = (0.01 * dt).log10();
                     specs.push(spec("lag_log10_tau_s", lo, (20.0 * dt).log10(), lo, x))
                 }
-                Effect::Saturation => specs.push(spec("sat_c", 0.0, 2.0, 0.0, x)),
+                // Clip level over the training peak; the top (1) is no clipping at all.
+                Effect::Saturation => specs.push(spec("sat_level", 0.5, 1.0, 1.0, x)),
                 Effect::Asymmetry => specs.push(spec("asym_q", -0.3, 0.3, 0.0, x)),
                 Effect::RateDependence => {
                     specs.push(spec("rate_rho", 0.0, 2.0, 0.0, x));
@@ -299,7 +300,22 @@ impl Structure {
         if self.has(Effect::OffsetDrift) {
             v.extend(["drift_a1", "drift_a2"]);
         }
+        if self.has(Effect::Creep) {
+            v.extend(["creep_x0_fast", "creep_x0_slow"]);
+        }
         v
+    }
+
+    /// Indices (in [`LinearFit::coef`]) of coefficients that belong to a record's own
+    /// initial state (the creep elements' states at its first sample, which decay as
+    /// `e^(-t/τ)`): refitted on every record by [`Self::simulate_on`].
+    pub fn initial_state_coefs(&self) -> Vec<usize> {
+        self.linear_names()
+            .iter()
+            .enumerate()
+            .filter(|(_, n)| n.starts_with("creep_x0"))
+            .map(|(i, _)| i)
+            .collect()
     }
 
     /// Parameters counted by information criteria: shape plus linear.
@@ -363,7 +379,9 @@ impl Structure {
                         10f64.powf(x)
                     }
                 }
-                "sat_c" => sh.sat_c = x,
+                "sat_level" => {
+                    sh.sat_c = if x >= spec.upper - 1e-9 { 0.0 } else { 1.0 / x }
+                }
                 "asym_q" => sh.q = x,
                 "rate_rho" => sh.rho = x,
                 "rate_log10_tau_s" => sh.tau_r = 10f64.powf(x),
@@ -552,6 +570,17 @@ impl Structure {
             cols.push(t.iter().map(|x| x * x).collect());
             cols.insert(3, t);
         }
+        if self.has(Effect::Creep) {
+            for tau in [sh.creep_tau, sh.creep_tau2] {
+                let r = (-dt / tau).exp();
+                let col: Vec<f64> = (0..n).map(|k| r.powi(k as i32)).collect();
+                cols.push(if col.iter().all(|x| x.is_finite()) {
+                    col
+                } else {
+                    vec![0.0; n]
+                });
+            }
+        }
         (cols, status)
     }
 
@@ -596,6 +625,41 @@ impl Structure {
         (out, status)
     }
 
+    /// Model output on another record `(u, y)`: coefficients `coef` from training, except the
+    /// record's own initial-state coefficients ([`Self::initial_state_coefs`]), refitted by
+    /// least squares to this record. Returns the output and the coefficients used.
+    pub fn simulate_on(&self, theta: &[f64], coef: &[f64], u: &[f64], y: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let (cols, status) = self.columns(theta, u);
+        let nuisance = self.initial_state_coefs();
+        let mut c = coef.to_vec();
+        let n = u.len().min(y.len());
+        if !nuisance.is_empty() && status == Status::Ok {
+            let rest: Vec<f64> = (0..n)
+                .map(|k| {
+                    y[k] - cols
+                        .iter()
+                        .zip(coef)
+                        .enumerate()
+                        .filter(|(j, _)| !nuisance.contains(j))
+                        .map(|(_, (col, b))| col[k] * b)
+                        .sum::<f64>()
+                })
+                .collect();
+            let sub: Vec<Vec<f64>> = nuisance.iter().map(|&j| cols[j][..n].to_vec()).collect();
+            for (&j, b) in nuisance.iter().zip(least_squares(&sub, &rest)) {
+                c[j] = b;
+            }
+        }
+        let mut out: Vec<f64> = (0..u.len())
+            .map(|k| cols.iter().zip(&c).map(|(col, b)| col[k] * b).sum())
+            .collect();
+        if let Status::Unstable { at } = status {
+            let last = if at > 0 { out[at - 1] } else { 0.0 };
+            out[at..].fill(last);
+        }
+        (out, c)
+    }
+
     /// Parameters by name in the seed's form where it applies (`d_e`, `alpha`, `beta`,
     /// `gamma`, `n`, `d0` of eq. 3.1-3.3 on the data's own units), then each extension's in
     /// physical units (seconds, Hz, fractions).
@@ -619,7 +683,7 @@ impl Structure {
                 Effect::Delay => v.push(("delay_s".into(), sh.delay * dt)),
                 Effect::InputLag => v.push(("lag_tau_s".into(), sh.lag)),
                 Effect::Saturation => v.push((
-                    "saturation_limit".into(),
+                    "saturation_limit_input".into(),
                     if sh.sat_c > 0.0 {
                         self.ctx.u_ref / sh.sat_c
                     } else {
@@ -772,10 +836,14 @@ mod tests {
         let all = Structure::new(&Effect::ALL, Some(1.0), ctx);
         let nested = plain.embed(&theta, &all);
         let ext = all.fit_linear(&nested, &u, &y);
-        // Offset-drift adds two free columns, so its cost can only be lower.
+        // Offset-drift and creep add free columns (drift, initial creep states), so their
+        // cost can only be lower; the others equal the plain model's.
         assert!(ext.cost <= base.cost * (1.0 + 1e-12));
         for e in Effect::ALL {
-            if e == Effect::OffsetDrift {
+            if matches!(e, Effect::OffsetDrift | Effect::Creep) {
+                let one = Structure::new(&[e], Some(1.0), ctx);
+                let f = one.fit_linear(&plain.embed(&theta, &one), &u, &y);
+                assert!(f.cost <= base.cost * (1.0 + 1e-12), "{}", e.name());
                 continue;
             }
             let one = Structure::new(&[e], Some(1.0), ctx);
@@ -822,7 +890,7 @@ mod tests {
             (
                 "saturation.limit=60",
                 vec![Effect::Saturation],
-                vec![("sat_c", ctx.u_ref * gain / 60.0)],
+                vec![("sat_level", 60.0 / gain / ctx.u_ref)],
             ),
             (
                 "asymmetry=0.001",
