@@ -77,9 +77,10 @@ fn read(path: &PathBuf, columns: &Columns) -> Result<Recording> {
 
 /// Runs the command; returns the text to print.
 pub fn run(a: DiagnoseArgs) -> Result<String> {
-    let model = a.model.clone().unwrap_or_else(|| {
-        if a.proof { "bouc-wen-n1" } else { "bouc-wen" }.to_string()
-    });
+    let model = a
+        .model
+        .clone()
+        .unwrap_or_else(|| if a.proof { "bouc-wen-n1" } else { "bouc-wen" }.to_string());
     let opts = Options {
         model,
         seed: a.seed,

@@ -243,7 +243,9 @@ fn evaluate(mut f: Fitted, d: &Data, opts: &Options) -> Evaluated {
     let (out_t, _) = f.structure.simulate(&f.theta, &f.linear.coef, &d.ut);
     let (theta_v, used) = fit::initial_state_for(&f, &d.uv, &d.yv, 60, opts.seed);
     f.evaluations += used;
-    let (out_v, _) = f.structure.simulate_on(&theta_v, &f.linear.coef, &d.uv, &d.yv);
+    let (out_v, _) = f
+        .structure
+        .simulate_on(&theta_v, &f.linear.coef, &d.uv, &d.yv);
     let ev: Vec<f64> = d.yv.iter().zip(&out_v).map(|(a, b)| a - b).collect();
     let tests = residual::battery(&d.uv, &ev, opts.lags, opts.alpha);
     Evaluated {
@@ -399,7 +401,10 @@ pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Resu
         );
         evaluations += f1.evaluations;
         let (b_free, b_one) = (bic(&base_fit, d.ut.len()), bic(&f1, d.ut.len()));
-        let n_fit = base_fit.structure.named_params(&base_fit.theta, &base_fit.linear.coef)[4].1;
+        let n_fit = base_fit
+            .structure
+            .named_params(&base_fit.theta, &base_fit.linear.coef)[4]
+            .1;
         if b_free < b_one - opts.bic_margin {
             n_choice = format!(
                 "n fitted: {} (BIC {} below n = 1's, margin {})",

@@ -79,7 +79,7 @@ impl CaseKind {
             }
             Some(Effect::Asymmetry) => format!("v + {x} v² on the drive"),
             Some(Effect::Saturation) => {
-                format!("drive clipped at {:.0} % of its peak", 100.0 * x)
+                format!("drive clipped at {:.1} % of its peak", 100.0 * x)
             }
             Some(Effect::OffsetDrift) => format!("sensor drift {} µm/s", x * 1e3),
             Some(Effect::RateDependence) => {
@@ -101,7 +101,7 @@ pub fn kinds() -> Vec<CaseKind> {
         k(Some(Effect::Delay), 1e-3),
         k(Some(Effect::Creep), 0.025),
         k(Some(Effect::Asymmetry), 2.2e-4),
-        k(Some(Effect::Saturation), 0.99),
+        k(Some(Effect::Saturation), 0.998),
         k(Some(Effect::OffsetDrift), 5e-4),
         k(Some(Effect::RateDependence), 0.035),
     ]

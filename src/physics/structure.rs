@@ -246,7 +246,8 @@ impl Structure {
                     // the upper end itself is a wire (no mode).
                     let hi = (0.5 / dt).log10();
                     specs.push(spec("mode_log10_hz", (0.005 / dt).log10(), hi, hi, x));
-                    specs.push(spec("mode_zeta", 0.005, 1.5, 0.3, x));
+                    let z = (0.005f64.log10(), 1.5f64.log10());
+                    specs.push(spec("mode_log10_zeta", z.0, z.1, 0.3f64.log10(), x));
                 }
                 Effect::OffsetDrift => {}
             }
@@ -379,9 +380,7 @@ impl Structure {
                         10f64.powf(x)
                     }
                 }
-                "sat_level" => {
-                    sh.sat_c = if x >= spec.upper - 1e-9 { 0.0 } else { 1.0 / x }
-                }
+                "sat_level" => sh.sat_c = if x >= spec.upper - 1e-9 { 0.0 } else { 1.0 / x },
                 "asym_q" => sh.q = x,
                 "rate_rho" => sh.rho = x,
                 "rate_log10_tau_s" => sh.tau_r = 10f64.powf(x),
@@ -396,7 +395,7 @@ impl Structure {
                         1.0 / (2.0 * std::f64::consts::PI * 10f64.powf(x))
                     }
                 }
-                "mode_zeta" => sh.zeta = x,
+                "mode_log10_zeta" => sh.zeta = 10f64.powf(x),
                 _ => {}
             }
         }
@@ -508,16 +507,19 @@ impl Structure {
         if let Some(r) = &mut rate {
             r.settle(0.0);
         }
+        // The hysteretic state at the first sample; the linear blocks after it at rest there.
+        let mut g = sh.g0.clamp(-1.0, 1.0) * sh.s * ctx.u_ref;
+        let g_init = if g.is_finite() { g } else { 0.0 };
         for (_, a, b) in &mut creep {
             a.settle(v0);
-            b.settle(0.0);
+            b.settle(-g_init);
         }
         if let Some((a, b)) = &mut mode {
-            a.settle(v0);
-            b.settle(0.0);
+            let k = 1.0 + creep.iter().map(|c| c.0).sum::<f64>();
+            a.settle(k * v0);
+            b.settle(-k * g_init);
         }
         let bound = 1e6 * (1.0 + ctx.u_ref) * (1.0 + u.iter().fold(0.0f64, |m, x| m.max(x.abs())));
-        let mut g = sh.g0.clamp(-1.0, 1.0) * sh.s * ctx.u_ref;
         let mut v_prev = v0;
         for k in 0..n {
             let mut x = u[k];
@@ -628,7 +630,13 @@ impl Structure {
     /// Model output on another record `(u, y)`: coefficients `coef` from training, except the
     /// record's own initial-state coefficients ([`Self::initial_state_coefs`]), refitted by
     /// least squares to this record. Returns the output and the coefficients used.
-    pub fn simulate_on(&self, theta: &[f64], coef: &[f64], u: &[f64], y: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    pub fn simulate_on(
+        &self,
+        theta: &[f64],
+        coef: &[f64],
+        u: &[f64],
+        y: &[f64],
+    ) -> (Vec<f64>, Vec<f64>) {
         let (cols, status) = self.columns(theta, u);
         let nuisance = self.initial_state_coefs();
         let mut c = coef.to_vec();
@@ -902,7 +910,7 @@ mod tests {
                 vec![Effect::Dynamics],
                 vec![
                     ("mode_log10_hz", 150f64.log10()),
-                    ("mode_zeta", 0.04),
+                    ("mode_log10_zeta", 0.04f64.log10()),
                 ],
             ),
             (
