@@ -70,7 +70,7 @@ fn effects(spec: &Option<String>) -> Result<Vec<Effect>> {
         .collect()
 }
 
-fn read(path: &PathBuf, columns: &Columns) -> Result<Recording> {
+fn read(path: &std::path::Path, columns: &Columns) -> Result<Recording> {
     let p = resolve_path(&path.to_string_lossy(), std::path::Path::new("."));
     Recording::read_csv(&p, columns, &ReadOptions::default())
 }

@@ -880,7 +880,8 @@ mod tests {
         let s = (1.0 / sigma / ctx.u_ref).log10();
         let w = p.beta / (p.beta + p.gamma);
         let gain = 15.0;
-        let cases: Vec<(&str, Vec<Effect>, Vec<(&str, f64)>)> = vec![
+        type Case<'a> = (&'a str, Vec<Effect>, Vec<(&'a str, f64)>);
+        let cases: Vec<Case> = vec![
             ("", vec![], vec![]),
             (
                 "amp=on,amp.cutoff_hz=500",
