@@ -70,16 +70,17 @@ fn effects(spec: &Option<String>) -> Result<Vec<Effect>> {
         .collect()
 }
 
-fn read(path: &PathBuf, columns: &Columns) -> Result<Recording> {
+fn read(path: &std::path::Path, columns: &Columns) -> Result<Recording> {
     let p = resolve_path(&path.to_string_lossy(), std::path::Path::new("."));
     Recording::read_csv(&p, columns, &ReadOptions::default())
 }
 
 /// Runs the command; returns the text to print.
 pub fn run(a: DiagnoseArgs) -> Result<String> {
-    let model = a.model.clone().unwrap_or_else(|| {
-        if a.proof { "bouc-wen-n1" } else { "bouc-wen" }.to_string()
-    });
+    let model = a
+        .model
+        .clone()
+        .unwrap_or_else(|| if a.proof { "bouc-wen-n1" } else { "bouc-wen" }.to_string());
     let opts = Options {
         model,
         seed: a.seed,

@@ -192,8 +192,27 @@ pub fn fit(
             base: best.clone(),
             bounds,
         });
+        // The start, and a grid over the first one or two free coordinates (the others at
+        // the start): narrow basins (a lightly damped mode) are then not left to chance.
+        let start: Vec<f64> = free.iter().map(|&i| best[i]).collect();
+        let mut points = vec![start.clone()];
+        let cell = |j: usize, k: usize, m: usize| {
+            let (lo, hi) = (obj.bounds().lower()[free[j]], obj.bounds().upper()[free[j]]);
+            lo + (hi - lo) * (k as f64 + 0.5) / m as f64
+        };
+        let (m0, m1) = if free.len() >= 2 { (12, 5) } else { (16, 1) };
+        for k0 in 0..m0 {
+            for k1 in 0..m1 {
+                let mut p = start.clone();
+                p[0] = cell(0, k0, m0);
+                if m1 > 1 {
+                    p[1] = cell(1, k1, m1);
+                }
+                points.push(p);
+            }
+        }
         let seeded = Seeded {
-            points: vec![free.iter().map(|&i| best[i]).collect()],
+            points,
             inner: PsoConfig {
                 swarm: budget.swarm,
                 ..PsoConfig::default()
@@ -269,7 +288,7 @@ impl Objective for InitialState {
     fn evaluate(&self, x: &[f64]) -> f64 {
         let mut th = self.theta.clone();
         th[self.index] = x[0];
-        let (out, _) = self.st.simulate(&th, &self.coef, &self.u);
+        let (out, _) = self.st.simulate_on(&th, &self.coef, &self.u, &self.y);
         let j: f64 = out
             .iter()
             .zip(&self.y)

@@ -243,7 +243,9 @@ fn evaluate(mut f: Fitted, d: &Data, opts: &Options) -> Evaluated {
     let (out_t, _) = f.structure.simulate(&f.theta, &f.linear.coef, &d.ut);
     let (theta_v, used) = fit::initial_state_for(&f, &d.uv, &d.yv, 60, opts.seed);
     f.evaluations += used;
-    let (out_v, _) = f.structure.simulate(&theta_v, &f.linear.coef, &d.uv);
+    let (out_v, _) = f
+        .structure
+        .simulate_on(&theta_v, &f.linear.coef, &d.uv, &d.yv);
     let ev: Vec<f64> = d.yv.iter().zip(&out_v).map(|(a, b)| a - b).collect();
     let tests = residual::battery(&d.uv, &ev, opts.lags, opts.alpha);
     Evaluated {
@@ -292,7 +294,7 @@ fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> Vec<
     let st = &base.structure;
     let (mt, _) = st.simulate(&base.theta, &base.linear.coef, &d.ut);
     let (theta_v, _) = fit::initial_state_for(base, &d.uv, &d.yv, 60, opts.seed);
-    let (mv, _) = st.simulate(&theta_v, &base.linear.coef, &d.uv);
+    let (mv, _) = st.simulate_on(&theta_v, &base.linear.coef, &d.uv, &d.yv);
     let mut scores: Vec<f64> = (0..opts.bootstrap)
         .into_par_iter()
         .map(|b| {
@@ -321,7 +323,7 @@ fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> Vec<
                 opts.seed ^ (0xb00 + b as u64),
             );
             let (tv, _) = fit::initial_state_for(&refit, &d.uv, &yv, 60, opts.seed);
-            let (ov, _) = st.simulate(&tv, &refit.linear.coef, &d.uv);
+            let (ov, _) = st.simulate_on(&tv, &refit.linear.coef, &d.uv, &yv);
             let ev: Vec<f64> = yv.iter().zip(&ov).map(|(a, b)| a - b).collect();
             residual::score(&residual::battery(&d.uv, &ev, opts.lags, opts.alpha))
         })
@@ -399,7 +401,10 @@ pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Resu
         );
         evaluations += f1.evaluations;
         let (b_free, b_one) = (bic(&base_fit, d.ut.len()), bic(&f1, d.ut.len()));
-        let n_fit = base_fit.structure.named_params(&base_fit.theta, &base_fit.linear.coef)[4].1;
+        let n_fit = base_fit
+            .structure
+            .named_params(&base_fit.theta, &base_fit.linear.coef)[4]
+            .1;
         if b_free < b_one - opts.bic_margin {
             n_choice = format!(
                 "n fitted: {} (BIC {} below n = 1's, margin {})",

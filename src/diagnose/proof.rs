@@ -10,9 +10,10 @@
 //! ([`Structure`] with `rate-dependence`) with the twin's noise and quantisation.
 //!
 //! Excitation (D/A commands, V, sampled at 1 ms): training is a slow random-phase multisine
-//! (0.25-3 Hz, 0.8 V RMS about 2.35 V) plus a small fast one (20-120 Hz, 0.015 V RMS), so
+//! (0.25-2.5 Hz) plus a small fast one (20-120 Hz, 1.5 % of its RMS), so
 //! lag, delay and a mode show in amplitude and phase where they differ; validation is a
-//! different signal, a 0.7 Hz triangle (2.35 ± 2 V) plus a small 15-150 Hz log chirp.
+//! different signal, a 0.7 Hz triangle plus a small 15-150 Hz log chirp. Both are scaled to
+//! span 0.05-4.65 V (0-70 V of drive, the seed's range).
 
 use super::{Diagnosis, Options, diagnose};
 use crate::error::Result;
@@ -79,7 +80,7 @@ impl CaseKind {
             }
             Some(Effect::Asymmetry) => format!("v + {x} v² on the drive"),
             Some(Effect::Saturation) => {
-                format!("drive clipped at {:.0} % of its peak", 100.0 * x)
+                format!("drive clipped at {:.1} % of its peak", 100.0 * x)
             }
             Some(Effect::OffsetDrift) => format!("sensor drift {} µm/s", x * 1e3),
             Some(Effect::RateDependence) => {
@@ -110,15 +111,30 @@ pub fn kinds() -> Vec<CaseKind> {
 /// Training and validation commands of `seconds` each at `dt`, from noise seed `seed`.
 pub fn signals(seconds: f64, dt: f64, seed: u64) -> Result<(Vec<f64>, Vec<f64>)> {
     let train = Signal::parse(&format!(
-        "multisine:fmin=0.25,fmax=3,period={seconds},rms=0.8,seed={seed},offset=2.35 \
-         + multisine:fmin=20,fmax=120,period=1,rms=0.015,seed={}",
+        "multisine:fmin=0.25,fmax=2.5,period={seconds},rms=0.8,seed={seed},offset=2.35 \
+         + multisine:fmin=20,fmax=120,period=1,rms=0.012,seed={}",
         seed + 1000
     ))?;
     let validate = Signal::parse(&format!(
         "triangle:freq=0.7,amp=2,phase=-1.5707963,offset=2.35 \
-         + chirp:f0=15,f1=150,duration={seconds},law=log,amp=0.015"
+         + chirp:f0=15,f1=150,duration={seconds},law=log,amp=0.012"
     ))?;
-    Ok((train.sample(dt, seconds), validate.sample(dt, seconds)))
+    // Both span the seed's 0-70 V drive (0.05-4.65 V command), so the peak (and a
+    // saturation case's clipping) does not depend on the noise seed's phases.
+    let span = |x: Vec<f64>| -> Vec<f64> {
+        let (lo, hi) = x
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+        x.iter()
+            .map(|v| 0.05 + 4.6 * (v - lo) / (hi - lo).max(1e-12))
+            .collect()
+    };
+    Ok((
+        span(train.sample(dt, seconds)),
+        span(validate.sample(dt, seconds)),
+    ))
 }
 
 /// The recordings of one case (noise seeds from `seed`).
@@ -162,8 +178,10 @@ pub fn generate(kind: &CaseKind, seed: u64, seconds: f64) -> Result<(Recording, 
         let v = out.pop().expect("two recordings");
         return Ok((out.pop().expect("two recordings"), v));
     }
+    // Both records peak at the same drive; saturation clips the top of both.
     let gain = TwinConfig::default().amp.gain;
-    let peak = ut.iter().chain(&uv).fold(0.0f64, |m, x| m.max(x.abs())) * gain;
+    let peak_of = |u: &[f64]| u.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let peak = peak_of(&ut).min(peak_of(&uv)) * gain;
     let cfg = TwinConfig::parse_overrides(&format!("{NULL_TWIN},{}", kind.overrides(peak)))?;
     let t = twin::recording(&cfg, name("train"), ut, dt, seed.wrapping_mul(2))?;
     let v = twin::recording(&cfg, name("validate"), uv, dt, seed.wrapping_mul(2) + 1)?;

@@ -225,7 +225,8 @@ impl Structure {
                     let lo = (0.01 * dt).log10();
                     specs.push(spec("lag_log10_tau_s", lo, (20.0 * dt).log10(), lo, x))
                 }
-                Effect::Saturation => specs.push(spec("sat_c", 0.0, 2.0, 0.0, x)),
+                // Clip level over the training peak; the top (1) is no clipping at all.
+                Effect::Saturation => specs.push(spec("sat_level", 0.5, 1.0, 1.0, x)),
                 Effect::Asymmetry => specs.push(spec("asym_q", -0.3, 0.3, 0.0, x)),
                 Effect::RateDependence => {
                     specs.push(spec("rate_rho", 0.0, 2.0, 0.0, x));
@@ -245,7 +246,8 @@ impl Structure {
                     // the upper end itself is a wire (no mode).
                     let hi = (0.5 / dt).log10();
                     specs.push(spec("mode_log10_hz", (0.005 / dt).log10(), hi, hi, x));
-                    specs.push(spec("mode_zeta", 0.005, 1.5, 0.3, x));
+                    let z = (0.005f64.log10(), 1.5f64.log10());
+                    specs.push(spec("mode_log10_zeta", z.0, z.1, 0.3f64.log10(), x));
                 }
                 Effect::OffsetDrift => {}
             }
@@ -299,7 +301,22 @@ impl Structure {
         if self.has(Effect::OffsetDrift) {
             v.extend(["drift_a1", "drift_a2"]);
         }
+        if self.has(Effect::Creep) {
+            v.extend(["creep_x0_fast", "creep_x0_slow"]);
+        }
         v
+    }
+
+    /// Indices (in [`LinearFit::coef`]) of coefficients that belong to a record's own
+    /// initial state (the creep elements' states at its first sample, which decay as
+    /// `e^(-t/τ)`): refitted on every record by [`Self::simulate_on`].
+    pub fn initial_state_coefs(&self) -> Vec<usize> {
+        self.linear_names()
+            .iter()
+            .enumerate()
+            .filter(|(_, n)| n.starts_with("creep_x0"))
+            .map(|(i, _)| i)
+            .collect()
     }
 
     /// Parameters counted by information criteria: shape plus linear.
@@ -363,7 +380,7 @@ impl Structure {
                         10f64.powf(x)
                     }
                 }
-                "sat_c" => sh.sat_c = x,
+                "sat_level" => sh.sat_c = if x >= spec.upper - 1e-9 { 0.0 } else { 1.0 / x },
                 "asym_q" => sh.q = x,
                 "rate_rho" => sh.rho = x,
                 "rate_log10_tau_s" => sh.tau_r = 10f64.powf(x),
@@ -378,7 +395,7 @@ impl Structure {
                         1.0 / (2.0 * std::f64::consts::PI * 10f64.powf(x))
                     }
                 }
-                "mode_zeta" => sh.zeta = x,
+                "mode_log10_zeta" => sh.zeta = 10f64.powf(x),
                 _ => {}
             }
         }
@@ -490,16 +507,19 @@ impl Structure {
         if let Some(r) = &mut rate {
             r.settle(0.0);
         }
+        // The hysteretic state at the first sample; the linear blocks after it at rest there.
+        let mut g = sh.g0.clamp(-1.0, 1.0) * sh.s * ctx.u_ref;
+        let g_init = if g.is_finite() { g } else { 0.0 };
         for (_, a, b) in &mut creep {
             a.settle(v0);
-            b.settle(0.0);
+            b.settle(-g_init);
         }
         if let Some((a, b)) = &mut mode {
-            a.settle(v0);
-            b.settle(0.0);
+            let k = 1.0 + creep.iter().map(|c| c.0).sum::<f64>();
+            a.settle(k * v0);
+            b.settle(-k * g_init);
         }
         let bound = 1e6 * (1.0 + ctx.u_ref) * (1.0 + u.iter().fold(0.0f64, |m, x| m.max(x.abs())));
-        let mut g = sh.g0.clamp(-1.0, 1.0) * sh.s * ctx.u_ref;
         let mut v_prev = v0;
         for k in 0..n {
             let mut x = u[k];
@@ -552,6 +572,17 @@ impl Structure {
             cols.push(t.iter().map(|x| x * x).collect());
             cols.insert(3, t);
         }
+        if self.has(Effect::Creep) {
+            for tau in [sh.creep_tau, sh.creep_tau2] {
+                let r = (-dt / tau).exp();
+                let col: Vec<f64> = (0..n).map(|k| r.powi(k as i32)).collect();
+                cols.push(if col.iter().all(|x| x.is_finite()) {
+                    col
+                } else {
+                    vec![0.0; n]
+                });
+            }
+        }
         (cols, status)
     }
 
@@ -596,6 +627,47 @@ impl Structure {
         (out, status)
     }
 
+    /// Model output on another record `(u, y)`: coefficients `coef` from training, except the
+    /// record's own initial-state coefficients ([`Self::initial_state_coefs`]), refitted by
+    /// least squares to this record. Returns the output and the coefficients used.
+    pub fn simulate_on(
+        &self,
+        theta: &[f64],
+        coef: &[f64],
+        u: &[f64],
+        y: &[f64],
+    ) -> (Vec<f64>, Vec<f64>) {
+        let (cols, status) = self.columns(theta, u);
+        let nuisance = self.initial_state_coefs();
+        let mut c = coef.to_vec();
+        let n = u.len().min(y.len());
+        if !nuisance.is_empty() && status == Status::Ok {
+            let rest: Vec<f64> = (0..n)
+                .map(|k| {
+                    y[k] - cols
+                        .iter()
+                        .zip(coef)
+                        .enumerate()
+                        .filter(|(j, _)| !nuisance.contains(j))
+                        .map(|(_, (col, b))| col[k] * b)
+                        .sum::<f64>()
+                })
+                .collect();
+            let sub: Vec<Vec<f64>> = nuisance.iter().map(|&j| cols[j][..n].to_vec()).collect();
+            for (&j, b) in nuisance.iter().zip(least_squares(&sub, &rest)) {
+                c[j] = b;
+            }
+        }
+        let mut out: Vec<f64> = (0..u.len())
+            .map(|k| cols.iter().zip(&c).map(|(col, b)| col[k] * b).sum())
+            .collect();
+        if let Status::Unstable { at } = status {
+            let last = if at > 0 { out[at - 1] } else { 0.0 };
+            out[at..].fill(last);
+        }
+        (out, c)
+    }
+
     /// Parameters by name in the seed's form where it applies (`d_e`, `alpha`, `beta`,
     /// `gamma`, `n`, `d0` of eq. 3.1-3.3 on the data's own units), then each extension's in
     /// physical units (seconds, Hz, fractions).
@@ -619,7 +691,7 @@ impl Structure {
                 Effect::Delay => v.push(("delay_s".into(), sh.delay * dt)),
                 Effect::InputLag => v.push(("lag_tau_s".into(), sh.lag)),
                 Effect::Saturation => v.push((
-                    "saturation_limit".into(),
+                    "saturation_limit_input".into(),
                     if sh.sat_c > 0.0 {
                         self.ctx.u_ref / sh.sat_c
                     } else {
@@ -772,10 +844,14 @@ mod tests {
         let all = Structure::new(&Effect::ALL, Some(1.0), ctx);
         let nested = plain.embed(&theta, &all);
         let ext = all.fit_linear(&nested, &u, &y);
-        // Offset-drift adds two free columns, so its cost can only be lower.
+        // Offset-drift and creep add free columns (drift, initial creep states), so their
+        // cost can only be lower; the others equal the plain model's.
         assert!(ext.cost <= base.cost * (1.0 + 1e-12));
         for e in Effect::ALL {
-            if e == Effect::OffsetDrift {
+            if matches!(e, Effect::OffsetDrift | Effect::Creep) {
+                let one = Structure::new(&[e], Some(1.0), ctx);
+                let f = one.fit_linear(&plain.embed(&theta, &one), &u, &y);
+                assert!(f.cost <= base.cost * (1.0 + 1e-12), "{}", e.name());
                 continue;
             }
             let one = Structure::new(&[e], Some(1.0), ctx);
@@ -804,7 +880,8 @@ mod tests {
         let s = (1.0 / sigma / ctx.u_ref).log10();
         let w = p.beta / (p.beta + p.gamma);
         let gain = 15.0;
-        let cases: Vec<(&str, Vec<Effect>, Vec<(&str, f64)>)> = vec![
+        type Case<'a> = (&'a str, Vec<Effect>, Vec<(&'a str, f64)>);
+        let cases: Vec<Case> = vec![
             ("", vec![], vec![]),
             (
                 "amp=on,amp.cutoff_hz=500",
@@ -822,7 +899,7 @@ mod tests {
             (
                 "saturation.limit=60",
                 vec![Effect::Saturation],
-                vec![("sat_c", ctx.u_ref * gain / 60.0)],
+                vec![("sat_level", 60.0 / gain / ctx.u_ref)],
             ),
             (
                 "asymmetry=0.001",
@@ -834,7 +911,7 @@ mod tests {
                 vec![Effect::Dynamics],
                 vec![
                     ("mode_log10_hz", 150f64.log10()),
-                    ("mode_zeta", 0.04),
+                    ("mode_log10_zeta", 0.04f64.log10()),
                 ],
             ),
             (

@@ -1915,8 +1915,16 @@ impl Figure for Lines<'_> {
     where
         DB::ErrorType: 'static,
     {
-        let xs: Vec<f64> = self.series.iter().flat_map(|(_, p)| p.iter().map(|q| q.0)).collect();
-        let ys: Vec<f64> = self.series.iter().flat_map(|(_, p)| p.iter().map(|q| q.1)).collect();
+        let xs: Vec<f64> = self
+            .series
+            .iter()
+            .flat_map(|(_, p)| p.iter().map(|q| q.0))
+            .collect();
+        let ys: Vec<f64> = self
+            .series
+            .iter()
+            .flat_map(|(_, p)| p.iter().map(|q| q.1))
+            .collect();
         let x = Axis::fit(self.log.0, &xs, 0.0, 8);
         let y = Axis::fit(self.log.1, &ys, 0.04, 7);
         let mut chart = frame(

@@ -1,0 +1,219 @@
+//! `optbench diagnose` end to end: the concealed-effect proof in small (one noise seed of
+//! every case on 4 s twin records), reproducibility across thread counts, and the command
+//! on CSV files (outputs, refusals). The full proof is `optbench diagnose --proof`.
+
+use optbench::diagnose::{Options, diagnose, proof};
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn opts(seed: u64) -> Options {
+    Options {
+        model: "bouc-wen-n1".into(),
+        seed,
+        ..Options::default()
+    }
+}
+
+fn pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+}
+
+/// The JSON of a diagnosis without its wall time.
+fn json_without_time(d: &optbench::diagnose::Diagnosis) -> serde_json::Value {
+    let mut v = serde_json::to_value(d).unwrap();
+    v.as_object_mut().unwrap().remove("wall_s");
+    v
+}
+
+#[test]
+fn every_concealed_effect_is_named_and_the_null_case_raises_no_alarm() {
+    let kinds = proof::kinds();
+    let (p, diagnoses) = pool(2)
+        .install(|| proof::run(&kinds, &[1], 4.0, &opts(1)))
+        .unwrap();
+    print!("{}", proof::markdown(&p));
+    for r in &p.rows {
+        // Concealed: the plain model's validation residual only a few times the noise.
+        if r.truth == "none" {
+            assert!(r.baseline_ratio < 1.2, "{r:?}");
+        } else {
+            assert!(
+                (1.5..=4.0).contains(&r.baseline_ratio),
+                "{} is not concealed: {r:?}",
+                r.truth
+            );
+            // The accepted model brings the residual down to the noise.
+            assert!(r.final_ratio < 1.15, "{r:?}");
+        }
+        assert!(r.exact, "{} diagnosed as {:?}", r.truth, r.found);
+    }
+    assert_eq!(p.detection, (8, 8));
+    assert_eq!(p.false_alarms, (0, 1));
+    // The diagnosis carries its evidence: the null case passes the calibrated tests, a
+    // concealed effect's baseline fails them and is located.
+    let get = |name: &str| &diagnoses.iter().find(|d| d.0 == name).unwrap().1;
+    let null = get("none-seed1");
+    assert!(null.baseline.p_value > 0.05 && !null.unexplained);
+    assert!(null.candidates.iter().all(|c| !c.accepted));
+    let delay = get("delay-seed1");
+    assert!(delay.baseline.p_value <= 0.05 && !delay.located.is_empty());
+    let c = delay.candidates.iter().find(|c| c.accepted).unwrap();
+    assert!(c.delta_bic < -10.0 && c.validate_rmse < delay.baseline.validate_band[0]);
+    let d = c.params["delay_s"];
+    assert!((d - 1e-3).abs() < 1e-4, "delay {d}");
+    let dynamics = get("dynamics-seed1");
+    let f = dynamics.final_model.params["mode_freq_hz"];
+    assert!((f - 250.0).abs() < 10.0, "mode at {f} Hz");
+
+    // Same seed, one thread: the same diagnosis, number for number.
+    let kind = kinds.iter().find(|k| k.name() == "delay").unwrap();
+    let (t, v) = proof::generate(kind, 1, 4.0).unwrap();
+    let again = pool(1).install(|| diagnose(&t, &v, &opts(1))).unwrap();
+    assert_eq!(json_without_time(&again), json_without_time(delay));
+}
+
+fn optbench(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_optbench"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn command_writes_json_and_figures_and_refuses_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let kind = proof::kinds()
+        .into_iter()
+        .find(|k| k.name() == "asymmetry")
+        .unwrap();
+    let (t, v) = proof::generate(&kind, 2, 3.0).unwrap();
+    let columns = optbench::recording::Columns::parse("t_s,u_V,y_mm").unwrap();
+    t.write_csv(&dir.path().join("train.csv"), &columns)
+        .unwrap();
+    v.write_csv(&dir.path().join("validate.csv"), &columns)
+        .unwrap();
+    let out = optbench(
+        &[
+            "diagnose",
+            "--train",
+            "train.csv",
+            "--validate",
+            "validate.csv",
+            "--columns",
+            "t_s,u_V,y_mm",
+            "--model",
+            "bouc-wen-n1",
+            "--out",
+            "diag",
+        ],
+        dir.path(),
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("left out: asymmetry"), "{text}");
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("diag/diagnosis.json")).unwrap())
+            .unwrap();
+    for key in [
+        "model",
+        "noise_floor",
+        "baseline",
+        "located",
+        "candidates",
+        "left_out",
+        "final",
+        "unexplained",
+    ] {
+        assert!(json.get(key).is_some(), "missing {key}");
+    }
+    assert_eq!(json["model"], "bouc-wen-n1");
+    assert_eq!(json["left_out"], serde_json::json!(["asymmetry"]));
+    let noise = json["noise_floor"].as_f64().unwrap();
+    assert!((noise / 3e-4 - 1.0).abs() < 0.1, "noise floor {noise}");
+    for key in ["train_rmse", "validate_rmse", "params"] {
+        assert!(json["baseline"].get(key).is_some() && json["final"].get(key).is_some());
+    }
+    for c in json["candidates"].as_array().unwrap() {
+        for key in [
+            "name",
+            "delta_bic",
+            "validate_rmse",
+            "accepted",
+            "params",
+            "evidence",
+        ] {
+            assert!(c.get(key).is_some(), "candidate without {key}");
+        }
+    }
+    for stem in [
+        "validate_residual_time",
+        "validate_residual_loop",
+        "validate_residual_spectrum",
+        "validate_loops",
+        "train_loops",
+    ] {
+        for ext in ["svg", "png"] {
+            let p = dir.path().join(format!("diag/{stem}.{ext}"));
+            assert!(
+                std::fs::metadata(&p).unwrap().len() > 1000,
+                "{}",
+                p.display()
+            );
+        }
+    }
+
+    // Refusals: exit 2, a message naming the problem, nothing written.
+    std::fs::write(
+        dir.path().join("bad.csv"),
+        "t_s,u_V,y_mm\n0,1,2\n0.001,x,3\n",
+    )
+    .unwrap();
+    for (args, needle) in [
+        (
+            vec!["--train", "bad.csv", "--validate", "validate.csv"],
+            "bad.csv:3",
+        ),
+        (
+            vec!["--train", "missing.csv", "--validate", "validate.csv"],
+            "missing.csv",
+        ),
+        (
+            vec![
+                "--train",
+                "train.csv",
+                "--validate",
+                "validate.csv",
+                "--model",
+                "preisach",
+            ],
+            "--model preisach",
+        ),
+        (
+            vec![
+                "--train",
+                "train.csv",
+                "--validate",
+                "validate.csv",
+                "--effects",
+                "delay,magic",
+            ],
+            "unknown effect `magic`",
+        ),
+    ] {
+        let mut a = vec!["diagnose", "--columns", "t_s,u_V,y_mm", "--out", "refused"];
+        a.extend(args);
+        let out = optbench(&a, dir.path());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_ne!(out.status.code(), Some(0), "{a:?}");
+        assert!(err.contains(needle), "{a:?}: {err}");
+        assert!(!dir.path().join("refused").exists());
+    }
+}
