@@ -158,13 +158,17 @@ pub fn run(req: &ControlRequest) -> Result<String> {
         );
     }
     text += &format!(
-        "RMS error {} (whole run), {} after {} s; max |e| after it {}; IMC feedback RMS {}\n",
+        "RMS error {} (whole run), {} after {} s; max |e| after it {}",
         fmt_mm(m.rmse_mm),
         fmt_mm(m.rmse_steady_mm),
         spec.transient,
         fmt_mm(m.max_error_steady_mm),
-        fmt_mm(Some(m.feedback_rms_mm)),
     );
+    // The IMC feedback (plant minus model) exists only with an internal model.
+    if fitted.is_some() {
+        text += &format!("; IMC feedback RMS {}", fmt_mm(Some(m.feedback_rms_mm)));
+    }
+    text += "\n";
     text += &format!("output folder: {}\n", req.out.display());
     Ok(text)
 }
