@@ -73,6 +73,7 @@ impl fmt::Display for Kind {
             Kind::Int { min, max } if max == i64::MAX => write!(f, "integer >= {min}"),
             Kind::Int { min, max } => write!(f, "integer in [{min}, {max}]"),
             Kind::Float { min, max } => match (min.is_finite(), max.is_finite()) {
+                (true, true) if min == f64::MIN_POSITIVE => write!(f, "number in (0, {max}]"),
                 (true, true) => write!(f, "number in [{min}, {max}]"),
                 (true, false) if min == f64::MIN_POSITIVE => write!(f, "number > 0"),
                 (true, false) => write!(f, "number >= {min}"),
