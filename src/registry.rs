@@ -292,9 +292,9 @@ const BOUC_WEN_PARAMS: &[Spec] = recording_params![
     },
     Spec {
         name: "scheme",
-        kind: Kind::Choice(&["fast", "accurate"]),
+        kind: Kind::Choice(&["fast", "accurate", "explicit"]),
         default: D::Str("fast"),
-        help: "integration: fast = fixed-cost exponential steps batched over the population (errors far below a fit's residual); accurate = the twin's adaptive kernel, one individual at a time",
+        help: "integration: fast = fixed-cost exponential steps batched over the population (errors far below a fit's residual); accurate = the twin's adaptive kernel, one individual at a time; explicit = the seed-style one-step Euler recurrence, batched (fastest, first order)",
     },
     Spec {
         name: "substeps",
@@ -317,6 +317,7 @@ fn build_bouc_wen(p: &Params) -> Result<Arc<dyn Objective>, Error> {
     .map_err(|e| p.error("lower", e))?
     .with_scheme(match p.str("scheme") {
         "accurate" => BoucWenScheme::Accurate,
+        "explicit" => BoucWenScheme::Explicit,
         _ => BoucWenScheme::Fast {
             substeps: p.int("substeps") as usize,
         },

@@ -192,6 +192,26 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         }),
         threads,
     });
+    let explicit = FastInput::explicit(&u, &y);
+    rows.push(Row {
+        name: "bouc-wen (explicit recurrence)".into(),
+        unit: "M samples/s",
+        work: samples,
+        scalar_s: time(cfg.repeats, || {
+            for (p, o) in pop.iter().zip(out.iter_mut()) {
+                *o = bouc_wen_fast::cost_reference(p, &explicit);
+            }
+        }),
+        batched_s: time(cfg.repeats, || {
+            bouc_wen_fast::costs(&pop, &explicit, &mut out)
+        }),
+        threads_s: time(cfg.repeats, || {
+            pop.par_chunks(lanes)
+                .zip(out.par_chunks_mut(lanes))
+                .for_each(|(p, o)| bouc_wen_fast::costs(p, &explicit, o))
+        }),
+        threads,
+    });
     let accurate_s = time(cfg.repeats.min(3), || {
         for (p, o) in pop.iter().zip(out.iter_mut()) {
             *o = bouc_wen::cost(p, &u, &y);
@@ -357,12 +377,12 @@ impl BenchReport {
             self.threads
         ));
         s.push_str(&format!(
-            "{:<28} {:>12} {:>10} {:>10} {:>10} {:>9} {:>9}\n",
+            "{:<31} {:>12} {:>10} {:>10} {:>10} {:>9} {:>9}\n",
             "objective", "unit", "scalar", "batched", "threads", "b/s", "t/b"
         ));
         for r in &self.rows {
             s.push_str(&format!(
-                "{:<28} {:>12} {:>10.1} {:>10.1} {:>10.1} {:>8.1}x {:>8.2}x\n",
+                "{:<31} {:>12} {:>10.1} {:>10.1} {:>10.1} {:>8.1}x {:>8.2}x\n",
                 r.name,
                 r.unit,
                 r.rate(r.scalar_s, 1),
@@ -403,7 +423,7 @@ mod tests {
             evaluations: 2000,
         };
         let r = run(&cfg);
-        assert_eq!(r.rows.len(), 6);
+        assert_eq!(r.rows.len(), 7);
         for row in &r.rows {
             assert!(row.scalar_s > 0.0 && row.batched_s > 0.0 && row.threads_s > 0.0);
         }
