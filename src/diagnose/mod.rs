@@ -290,12 +290,12 @@ fn summary(e: &Evaluated, d: &Data, boot: &[f64], seed: u64) -> ModelSummary {
 
 /// Parametric bootstrap of the fitted baseline: the battery's score on refits to the
 /// baseline's own simulated output plus Gaussian noise of RMS `sigma`.
-fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> Vec<f64> {
+fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> (Vec<f64>, u64) {
     let st = &base.structure;
     let (mt, _) = st.simulate(&base.theta, &base.linear.coef, &d.ut);
     let (theta_v, _) = fit::initial_state_for(base, &d.uv, &d.yv, 60, opts.seed);
     let (mv, _) = st.simulate_on(&theta_v, &base.linear.coef, &d.uv, &d.yv);
-    let mut scores: Vec<f64> = (0..opts.bootstrap)
+    let runs: Vec<(f64, u64)> = (0..opts.bootstrap)
         .into_par_iter()
         .map(|b| {
             let mut rng = TrialSeed::derive(opts.seed, "diagnose", "bootstrap", b as u64).rng(0);
@@ -322,14 +322,16 @@ fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> Vec<
                 },
                 opts.seed ^ (0xb00 + b as u64),
             );
-            let (tv, _) = fit::initial_state_for(&refit, &d.uv, &yv, 60, opts.seed);
+            let (tv, used) = fit::initial_state_for(&refit, &d.uv, &yv, 60, opts.seed);
             let (ov, _) = st.simulate_on(&tv, &refit.linear.coef, &d.uv, &yv);
             let ev: Vec<f64> = yv.iter().zip(&ov).map(|(a, b)| a - b).collect();
-            residual::score(&residual::battery(&d.uv, &ev, opts.lags, opts.alpha))
+            let score = residual::score(&residual::battery(&d.uv, &ev, opts.lags, opts.alpha));
+            (score, refit.evaluations + used)
         })
         .collect();
+    let mut scores: Vec<f64> = runs.iter().map(|r| r.0).collect();
     scores.sort_by(f64::total_cmp);
-    scores
+    (scores, runs.iter().map(|r| r.1).sum())
 }
 
 /// Diagnoses `train` against `validate` (same sampling interval).
@@ -425,9 +427,11 @@ pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Resu
     } else {
         base_fit
     };
+    let base_evals_fit = base_fit.evaluations;
     let base = evaluate(base_fit, &d, opts);
-    let boot = bootstrap_scores(&base.fitted, &d, noise.max(1e-300), opts);
-    evaluations += (boot.len() as u64) * opts.candidate_budget.polish / 2;
+    evaluations += base.fitted.evaluations - base_evals_fit;
+    let (boot, boot_evals) = bootstrap_scores(&base.fitted, &d, noise.max(1e-300), opts);
+    evaluations += boot_evals;
     let ev_base: Vec<f64> = d.yv.iter().zip(&base.out_v).map(|(a, b)| a - b).collect();
     let unit = validate.units[2].clone();
     let located = residual::locate(&d.uv, &ev_base, dt, noise, &unit);
