@@ -194,6 +194,38 @@ fn hostile_parameters_give_finite_costs() {
     }
 }
 
+/// The harness counts the evaluations a fitting objective answered with its penalty.
+#[test]
+fn penalised_evaluations_are_counted() {
+    let rec = twin(SINE_1HZ, 0.5, "");
+    // Wide bounds reach unstable parameters (beta + gamma < 0 blows up in finite time).
+    let bw: Arc<dyn Objective> =
+        Arc::new(BoucWenFit::new(&rec, &[], false, true, -50.0, 50.0).unwrap());
+    let cap = bw
+        .penalty_threshold()
+        .expect("Bouc-Wen declares its penalty");
+    let opt = optbench::optimizer::random_search::RandomSearchConfig::default();
+    let r = run_trial(TrialSpec {
+        objective_id: "bw",
+        optimizer_id: "rs",
+        trial: 0,
+        objective: Arc::clone(&bw),
+        optimizer: &opt,
+        budget: 400,
+        stop_value: None,
+        seed: TrialSeed::from_u64(3),
+    });
+    assert_eq!(r.nonfinite, 0);
+    assert!(
+        r.penalised > 0 && r.penalised < r.evaluations,
+        "{}",
+        r.penalised
+    );
+    // A stable fit near the truth stays below the threshold.
+    let ok = BoucWenFit::new(&rec, &[], false, true, 0.0, 1.5).unwrap();
+    assert!(ok.evaluate(&[0.15, 0.05, 0.5, 0.2, 1.0]) < cap);
+}
+
 fn optbench(args: &[&str], cwd: &Path) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_optbench"))
         .args(args)

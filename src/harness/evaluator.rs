@@ -26,6 +26,9 @@ pub struct Trace {
     pub evaluations: u64,
     /// Evaluations that returned NaN or an infinity.
     pub nonfinite: u64,
+    /// Evaluations the objective answered with a penalty (unusable parameters, e.g. an
+    /// unstable model; see [`Objective::penalty_threshold`]).
+    pub penalised: u64,
     /// Whether the run ended because the stop value was reached.
     pub stopped_at_target: bool,
 }
@@ -71,6 +74,8 @@ pub struct Evaluator {
     grid: Vec<u64>,
     next_checkpoint: usize,
     trace: Trace,
+    /// Values at or above this are penalties ([`Objective::penalty_threshold`]).
+    penalty: f64,
 }
 
 impl Evaluator {
@@ -78,7 +83,9 @@ impl Evaluator {
     /// `<= stop_value` has been seen.
     pub fn new(objective: Arc<dyn Objective>, budget: u64, stop_value: Option<f64>) -> Self {
         let dim = objective.dim();
+        let penalty = objective.penalty_threshold().unwrap_or(f64::INFINITY);
         Evaluator {
+            penalty,
             objective,
             budget,
             used: 0,
@@ -94,6 +101,7 @@ impl Evaluator {
                 best_x: Vec::with_capacity(dim),
                 evaluations: 0,
                 nonfinite: 0,
+                penalised: 0,
                 stopped_at_target: false,
             },
         }
@@ -145,6 +153,8 @@ impl Evaluator {
         self.used += 1;
         if !f.is_finite() {
             self.trace.nonfinite += 1;
+        } else if f >= self.penalty {
+            self.trace.penalised += 1;
         }
         if f < self.trace.best || self.trace.best_x.is_empty() {
             if f < self.trace.best {

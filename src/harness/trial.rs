@@ -38,6 +38,9 @@ pub struct TrialRecord {
     pub stopped_at_target: bool,
     /// Evaluations that returned NaN or an infinity.
     pub nonfinite: u64,
+    /// Evaluations answered with a penalty (unstable model parameters and the like).
+    #[serde(default)]
+    pub penalised: u64,
     /// Wall-clock seconds; recorded, never used as a budget.
     pub wall_s: f64,
     /// (evaluation, best-so-far) at every improvement.
@@ -95,6 +98,7 @@ pub fn run_trial(spec: TrialSpec<'_>) -> TrialRecord {
         optimum: spec.objective.optimum(),
         stopped_at_target: trace.stopped_at_target,
         nonfinite: trace.nonfinite,
+        penalised: trace.penalised,
         wall_s: start.elapsed().as_secs_f64(),
         improvements: trace.improvements,
         checkpoints: trace.checkpoints,

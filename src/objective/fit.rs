@@ -460,6 +460,11 @@ impl Objective for BoucWenFit {
         }
     }
 
+    /// Unstable runs cost at least the cap (and stable runs beyond it are clipped to it).
+    fn penalty_threshold(&self) -> Option<f64> {
+        Some(crate::physics::bouc_wen::cost_cap(&self.data.train().y))
+    }
+
     fn presentation(&self) -> Option<Presentation> {
         let t = self.data.train();
         Some(Presentation {

@@ -121,6 +121,13 @@ pub trait Objective: Send + Sync {
         }
     }
 
+    /// Values at or above this are penalties for unusable parameters (an unstable model),
+    /// not measurements of fit; the evaluator counts them so reports can say how many
+    /// evaluations were penalised. `None`: the objective never penalises.
+    fn penalty_threshold(&self) -> Option<f64> {
+        None
+    }
+
     /// The global minimum value inside [`Objective::bounds`], where it is known, so results
     /// can report the error to the optimum.
     fn optimum(&self) -> Option<f64> {

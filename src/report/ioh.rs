@@ -121,6 +121,7 @@ mod tests {
             optimum: Some(0.0),
             stopped_at_target: false,
             nonfinite: 0,
+            penalised: 0,
             wall_s: 0.1,
             improvements: imp,
             checkpoints: vec![],

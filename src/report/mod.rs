@@ -106,6 +106,38 @@ impl StoredRun {
     }
 }
 
+/// How many evaluations each objective x optimizer spent on penalised parameters (an
+/// unstable model), in plan order; empty when none were.
+fn penalised_markdown(records: &[TrialRecord]) -> String {
+    let mut cells: Vec<(&str, &str, u64, u64)> = Vec::new();
+    for r in records {
+        match cells
+            .iter_mut()
+            .find(|c| c.0 == r.objective && c.1 == r.optimizer)
+        {
+            Some(c) => {
+                c.2 += r.penalised;
+                c.3 += r.evaluations;
+            }
+            None => cells.push((&r.objective, &r.optimizer, r.penalised, r.evaluations)),
+        }
+    }
+    if cells.iter().all(|c| c.2 == 0) {
+        return String::new();
+    }
+    let mut s = String::from(
+        "## Penalised evaluations\n\nEvaluations whose parameters were unusable (e.g. an unstable model) and were answered with the objective's finite penalty instead of a fit, summed over trials:\n\n| objective | optimizer | penalised | of evaluations | share |\n| --- | --- | ---: | ---: | ---: |\n",
+    );
+    for (o, p, k, n) in cells.iter().filter(|c| c.2 > 0) {
+        s += &format!(
+            "| {o} | {p} | {k} | {n} | {:.2} % |\n",
+            100.0 * *k as f64 / (*n).max(1) as f64
+        );
+    }
+    s.push('\n');
+    s
+}
+
 /// Writes every report file into `dir` and returns the main table (Markdown) to print.
 pub fn generate(dir: &Path) -> Result<String> {
     let run = StoredRun::load(dir)?;
@@ -128,6 +160,7 @@ pub fn generate(dir: &Path) -> Result<String> {
             )?;
         }
     }
+    md += &penalised_markdown(&run.records);
     let report = paper::report_markdown(&a);
     let report = match report.split_once("\n## ") {
         // The paper tables go after the main table, before the details.

@@ -596,6 +596,7 @@ mod tests {
             optimum: Some(0.0),
             stopped_at_target: false,
             nonfinite: 0,
+            penalised: 0,
             wall_s: 0.0,
             improvements: vec![(1, 10.0), (50, best)],
             checkpoints: vec![],

@@ -2011,6 +2011,7 @@ mod tests {
             optimum,
             stopped_at_target: false,
             nonfinite: 0,
+            penalised: 0,
             wall_s: 0.0,
             improvements: improvements.to_vec(),
             checkpoints: checkpoints.to_vec(),

@@ -226,6 +226,7 @@ mod tests {
             optimum: Some(0.0),
             stopped_at_target: false,
             nonfinite: 10,
+            penalised: 0,
             wall_s: 0.0,
             improvements: vec![],
             checkpoints: vec![(10, 1.5)],

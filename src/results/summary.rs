@@ -32,6 +32,9 @@ pub struct CellSummary {
     pub optimum: Option<f64>,
     /// Evaluations that returned NaN or an infinity, summed over the trials.
     pub nonfinite: u64,
+    /// Evaluations answered with a penalty, summed over the trials.
+    #[serde(default)]
+    pub penalised: u64,
 }
 
 /// The whole `summary.json`.
@@ -76,6 +79,7 @@ pub fn summarize(suite: &str, seed: u64, records: &[TrialRecord]) -> Summary {
                 budget: rs[0].budget,
                 optimum: rs[0].optimum,
                 nonfinite: rs.iter().map(|r| r.nonfinite).sum(),
+                penalised: rs.iter().map(|r| r.penalised).sum(),
                 finals,
             }
         })

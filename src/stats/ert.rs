@@ -157,6 +157,7 @@ mod tests {
             optimum: Some(0.0),
             stopped_at_target: false,
             nonfinite: 0,
+            penalised: 0,
             wall_s: 0.0,
             improvements: vec![(1, 3.0), (5, 0.5), (60, 1e-9)],
             checkpoints: vec![],
