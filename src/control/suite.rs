@@ -859,7 +859,14 @@ pub fn run_suite(suite: &ControlSuite, threads: Option<usize>, out: &Path) -> Re
         cells_csv(&results.cells).as_bytes(),
     )?;
     atomic_write(&out.join("report.md"), report.as_bytes())?;
-    let prov = Provenance::new(suite, pool.current_num_threads(), started);
+    let prov = crate::results::Provenance::of_run(
+        &suite.name,
+        &suite.path,
+        suite.seed,
+        suite.trials,
+        pool.current_num_threads(),
+        started,
+    );
     atomic_write(
         &out.join("provenance.json"),
         serde_json::to_string_pretty(&prov)
@@ -881,48 +888,6 @@ pub fn run_suite(suite: &ControlSuite, threads: Option<usize>, out: &Path) -> Re
     }
     text += &comparison_markdown(suite, &results);
     Ok(text)
-}
-
-/// Where a control run came from.
-#[derive(Debug, Clone, Serialize)]
-struct Provenance {
-    tool: String,
-    version: String,
-    git_commit: Option<String>,
-    suite_name: String,
-    suite_file: String,
-    seed: u64,
-    trials: usize,
-    threads: usize,
-    started: String,
-    finished: String,
-    wall_s: f64,
-    command: Vec<String>,
-}
-
-impl Provenance {
-    fn new(suite: &ControlSuite, threads: usize, started: std::time::SystemTime) -> Self {
-        let finished = std::time::SystemTime::now();
-        Provenance {
-            tool: env!("CARGO_PKG_NAME").into(),
-            version: env!("CARGO_PKG_VERSION").into(),
-            git_commit: option_env!("OPTBENCH_GIT_COMMIT")
-                .filter(|s| !s.is_empty())
-                .map(String::from),
-            suite_name: suite.name.clone(),
-            suite_file: suite.path.display().to_string(),
-            seed: suite.seed,
-            trials: suite.trials,
-            threads,
-            started: humantime::format_rfc3339_seconds(started).to_string(),
-            finished: humantime::format_rfc3339_seconds(finished).to_string(),
-            wall_s: finished
-                .duration_since(started)
-                .unwrap_or_default()
-                .as_secs_f64(),
-            command: std::env::args().collect(),
-        }
-    }
 }
 
 /// Statistics of every (plant, controller, reference) cell, in plan order.

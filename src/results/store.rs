@@ -33,6 +33,26 @@ pub struct Provenance {
 impl Provenance {
     /// Provenance fields known from the build and the environment.
     pub fn new(suite: &Suite, threads: usize, started: std::time::SystemTime) -> Self {
+        Self::of_run(
+            &suite.name,
+            &suite.path,
+            suite.seed,
+            suite.trials,
+            threads,
+            started,
+        )
+    }
+
+    /// The same for any kind of suite (objective or control), from its name, file, seed and
+    /// trials; finished now.
+    pub fn of_run(
+        suite_name: &str,
+        suite_file: &std::path::Path,
+        seed: u64,
+        trials: usize,
+        threads: usize,
+        started: std::time::SystemTime,
+    ) -> Self {
         let finished = std::time::SystemTime::now();
         Provenance {
             tool: env!("CARGO_PKG_NAME").into(),
@@ -40,10 +60,10 @@ impl Provenance {
             git_commit: option_env!("OPTBENCH_GIT_COMMIT")
                 .filter(|s| !s.is_empty())
                 .map(String::from),
-            suite_name: suite.name.clone(),
-            suite_file: suite.path.display().to_string(),
-            seed: suite.seed,
-            trials: suite.trials,
+            suite_name: suite_name.to_string(),
+            suite_file: suite_file.display().to_string(),
+            seed,
+            trials,
             threads,
             started: humantime::format_rfc3339_seconds(started).to_string(),
             finished: humantime::format_rfc3339_seconds(finished).to_string(),
