@@ -162,16 +162,22 @@ impl FastInput {
 /// Per-individual constants, computed once with `std` functions (shared by every path).
 #[derive(Clone, Copy, Debug, Default)]
 struct Lane {
+    shape: Shape,
+    d_e: f64,
+    d0: f64,
+    bound: f64,
+}
+
+/// The constants of the hysteretic state's update (what every stage reads).
+#[derive(Clone, Copy, Debug, Default)]
+struct Shape {
     alpha: f64,
     c_pos: f64,
     c_neg: f64,
     n: f64,
-    d_e: f64,
-    d0: f64,
     /// Equilibria of `dg/dv` below and above 0 (±1e300 where there is none).
     eq_lo: f64,
     eq_hi: f64,
-    bound: f64,
 }
 
 impl Lane {
@@ -185,14 +191,16 @@ impl Lane {
             if r > 0.0 && e.is_finite() { e } else { 1e300 }
         };
         Lane {
-            alpha,
-            c_pos,
-            c_neg,
-            n,
+            shape: Shape {
+                alpha,
+                c_pos,
+                c_neg,
+                n,
+                eq_lo: -eq(c_neg),
+                eq_hi: eq(c_pos),
+            },
             d_e: p.d_e,
             d0: p.d0,
-            eq_lo: -eq(c_neg),
-            eq_hi: eq(c_pos),
             bound: 1e6 * (1.0 + alpha.abs()) * umax,
         }
     }
@@ -254,47 +262,25 @@ fn stage_log_g<M: Math>(h: f64, s: f64) -> (f64, f64) {
 }
 
 /// Stage 2: the half-Euler predictor `g½` (clamped), returned as `(|g½| floored, c(g½)·sgn)`.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn stage_predict<M: Math>(
-    g: f64,
-    log_g: f64,
-    half_l: f64,
-    alpha: f64,
-    c_pos: f64,
-    c_neg: f64,
-    n: f64,
-    eq_lo: f64,
-    eq_hi: f64,
-) -> (f64, f64) {
-    let gh = stage_euler::<M>(g, log_g, half_l, alpha, c_pos, c_neg, n, eq_lo, eq_hi);
+fn stage_predict<M: Math>(g: f64, log_g: f64, half_l: f64, sh: Shape) -> (f64, f64) {
+    let gh = stage_euler::<M>(g, log_g, half_l, sh);
     let agh = select(gh.abs() > TINY, gh.abs(), TINY);
-    (agh, select(gh >= 0.0, c_pos, -c_neg))
+    (agh, select(gh >= 0.0, sh.c_pos, -sh.c_neg))
 }
 
 /// An explicit Euler step of length `step` in the one-directional form, clamped to the
 /// monotone path between `g` and the equilibrium it heads for (the predictor of the
 /// predictor-corrector scheme with half a step; the whole explicit recurrence with a full
 /// one).
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn stage_euler<M: Math>(
-    g: f64,
-    log_g: f64,
-    step: f64,
-    alpha: f64,
-    c_pos: f64,
-    c_neg: f64,
-    n: f64,
-    eq_lo: f64,
-    eq_hi: f64,
-) -> f64 {
-    let pn = M::exp2(n * log_g);
-    let c0 = select(g >= 0.0, c_pos, c_neg);
-    let rate = alpha - c0 * pn;
+fn stage_euler<M: Math>(g: f64, log_g: f64, step: f64, sh: Shape) -> f64 {
+    let pn = M::exp2(sh.n * log_g);
+    let c0 = select(g >= 0.0, sh.c_pos, sh.c_neg);
+    let rate = sh.alpha - c0 * pn;
     let gh = step.mul_add(rate, g);
-    let lo = select(g < eq_lo, g, eq_lo);
-    let hi = select(g > eq_hi, g, eq_hi);
+    let lo = select(g < sh.eq_lo, g, sh.eq_lo);
+    let hi = select(g > sh.eq_hi, g, sh.eq_hi);
     select(gh < lo, lo, select(gh > hi, hi, gh))
 }
 
@@ -314,36 +300,24 @@ fn stage_correct<M: Math>(g: f64, z: f64, alpha: f64, l: f64, s: f64) -> f64 {
 }
 
 /// One sub-step of length `l` in direction `s` from hysteretic state `h`.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn substep<M: Math>(
-    h: f64,
-    s: f64,
-    l: f64,
-    alpha: f64,
-    c_pos: f64,
-    c_neg: f64,
-    n: f64,
-    eq_lo: f64,
-    eq_hi: f64,
-) -> f64 {
+fn substep<M: Math>(h: f64, s: f64, l: f64, sh: Shape) -> f64 {
     let (g, log_g) = stage_log_g::<M>(h, s);
-    let (agh, ch) = stage_predict::<M>(g, log_g, 0.5 * l, alpha, c_pos, c_neg, n, eq_lo, eq_hi);
-    let z = stage_exponent::<M>(M::log2(agh), ch, n, l);
-    stage_correct::<M>(g, z, alpha, l, s)
+    let (agh, ch) = stage_predict::<M>(g, log_g, 0.5 * l, sh);
+    let z = stage_exponent::<M>(M::log2(agh), ch, sh.n, l);
+    stage_correct::<M>(g, z, sh.alpha, l, s)
 }
 
 /// One sample of either scheme for one lane.
 #[inline(always)]
-fn step_one<M: Math>(h: f64, s: f64, l: f64, ln: &Lane, input: &FastInput) -> f64 {
-    let (alpha, c_pos, c_neg, n, lo, hi) = (ln.alpha, ln.c_pos, ln.c_neg, ln.n, ln.eq_lo, ln.eq_hi);
+fn step_one<M: Math>(h: f64, s: f64, l: f64, sh: Shape, input: &FastInput) -> f64 {
     if input.explicit {
         let (g, log_g) = stage_log_g::<M>(h, s);
-        return s * stage_euler::<M>(g, log_g, l, alpha, c_pos, c_neg, n, lo, hi);
+        return s * stage_euler::<M>(g, log_g, l, sh);
     }
     let mut h = h;
     for _ in 0..input.substeps {
-        h = substep::<M>(h, s, l, alpha, c_pos, c_neg, n, lo, hi);
+        h = substep::<M>(h, s, l, sh);
     }
     h
 }
@@ -374,7 +348,7 @@ fn simulate_with(p: &BoucWenParams, input: &FastInput, out: &mut [f64]) -> SimSt
     for k in 0..input.len() {
         let (s, l) = (input.sign[k], input.ell[k]);
         if l > 0.0 {
-            h = step_one::<Libm>(h, s, l, &ln, input);
+            h = step_one::<Libm>(h, s, l, ln.shape, input);
         }
         if !(h.abs() <= bound) {
             return SimStatus::Unstable { at: k };
@@ -462,16 +436,16 @@ fn run_block<M: Math, const W: usize>(ps: &[BoucWenParams], input: &FastInput, o
     }
     let soa = |f: fn(&Lane) -> f64| -> [f64; W] { std::array::from_fn(|i| f(&ln[i])) };
     let (alpha, c_pos, c_neg, n) = (
-        soa(|l| l.alpha),
-        soa(|l| l.c_pos),
-        soa(|l| l.c_neg),
-        soa(|l| l.n),
+        soa(|l| l.shape.alpha),
+        soa(|l| l.shape.c_pos),
+        soa(|l| l.shape.c_neg),
+        soa(|l| l.shape.n),
     );
     let (d_e, d0, eq_lo, eq_hi, bound) = (
         soa(|l| l.d_e),
         soa(|l| l.d0),
-        soa(|l| l.eq_lo),
-        soa(|l| l.eq_hi),
+        soa(|l| l.shape.eq_lo),
+        soa(|l| l.shape.eq_hi),
         soa(|l| l.bound),
     );
     let never = f64::INFINITY;
@@ -480,26 +454,31 @@ fn run_block<M: Math, const W: usize>(ps: &[BoucWenParams], input: &FastInput, o
         let (s, l) = (input.sign[k], input.ell[k]);
         if l > 0.0 {
             let half_l = 0.5 * l;
+            let sh = |i: usize| Shape {
+                alpha: alpha[i],
+                c_pos: c_pos[i],
+                c_neg: c_neg[i],
+                n: n[i],
+                eq_lo: eq_lo[i],
+                eq_hi: eq_hi[i],
+            };
+            let substeps = if input.explicit { 0 } else { input.substeps };
             if input.explicit {
                 let (mut g, mut a) = ([0.0; W], [0.0; W]);
                 for i in 0..W {
                     (g[i], a[i]) = stage_log_g::<M>(h[i], s);
                 }
                 for i in 0..W {
-                    h[i] = s * stage_euler::<M>(
-                        g[i], a[i], l, alpha[i], c_pos[i], c_neg[i], n[i], eq_lo[i], eq_hi[i],
-                    );
+                    h[i] = s * stage_euler::<M>(g[i], a[i], l, sh(i));
                 }
             }
-            for _ in 0..input.substeps * usize::from(!input.explicit) {
+            for _ in 0..substeps {
                 let (mut g, mut a, mut b) = ([0.0; W], [0.0; W], [0.0; W]);
                 for i in 0..W {
                     (g[i], a[i]) = stage_log_g::<M>(h[i], s);
                 }
                 for i in 0..W {
-                    (a[i], b[i]) = stage_predict::<M>(
-                        g[i], a[i], half_l, alpha[i], c_pos[i], c_neg[i], n[i], eq_lo[i], eq_hi[i],
-                    );
+                    (a[i], b[i]) = stage_predict::<M>(g[i], a[i], half_l, sh(i));
                 }
                 for i in 0..W {
                     a[i] = M::log2(a[i]);
