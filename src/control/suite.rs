@@ -46,6 +46,7 @@ use super::reference::Reference;
 use super::run::{ControllerSpec, DEFAULT_TRANSIENT_S, Metrics, RunSpec};
 use crate::error::{Error, Result};
 use crate::harness::TrialSeed;
+use crate::report::paper::{booktabs, latex_escape};
 use crate::report::table::{markdown, sig};
 use crate::results::atomic_write;
 use crate::stats::{a12, bootstrap_median_ci, describe, mann_whitney};
@@ -1019,34 +1020,14 @@ pub fn table_markdown(t: &ControlTable, suite: &ControlSuite, res: &ControlResul
     s
 }
 
-fn latex_escape(s: &str) -> String {
-    s.replace('\\', "\\textbackslash{}")
-        .replace('&', "\\&")
-        .replace('%', "\\%")
-        .replace('_', "\\_")
-        .replace('#', "\\#")
-}
-
 /// The same table in LaTeX (booktabs): ours, and the seed's number in parentheses.
 pub fn table_latex(t: &ControlTable, suite: &ControlSuite, res: &ControlResults) -> String {
-    let mut s = String::new();
-    writeln!(s, "% optbench: {} ({})", t.id, suite.name).unwrap();
-    writeln!(s, "\\begin{{table}}[t]\n\\centering").unwrap();
-    writeln!(
-        s,
-        "\\caption{{{} Ours: median over {} trials [95\\% CI]; the seed's single run in parentheses.}}",
+    let caption = format!(
+        "{} Ours: median over {} trials [95\\% CI]; the seed's single run in parentheses.",
         latex_escape(&t.title),
         suite.trials
-    )
-    .unwrap();
-    writeln!(
-        s,
-        "\\begin{{tabular}}{{l{}}}\n\\toprule",
-        "r".repeat(t.columns.len())
-    )
-    .unwrap();
-    let head: Vec<String> = t.columns.iter().map(|c| latex_escape(c)).collect();
-    writeln!(s, " & {} \\\\\n\\midrule", head.join(" & ")).unwrap();
+    );
+    let mut body = String::new();
     for row in &t.rows {
         let cells: Vec<String> = row
             .cells
@@ -1061,15 +1042,19 @@ pub fn table_latex(t: &ControlTable, suite: &ControlSuite, res: &ControlResults)
             })
             .collect();
         writeln!(
-            s,
+            body,
             "{} & {} \\\\",
             latex_escape(&row.label),
             cells.join(" & ")
         )
         .unwrap();
     }
-    writeln!(s, "\\bottomrule\n\\end{{tabular}}\n\\end{{table}}").unwrap();
-    s
+    booktabs(
+        &format!("{} ({})", t.id, suite.name),
+        &caption,
+        &t.columns,
+        &body,
+    )
 }
 
 fn cells_csv(cells: &[CellStats]) -> String {

@@ -287,11 +287,24 @@ pub fn latex_num(x: f64) -> String {
     }
 }
 
-fn latex_escape(s: &str) -> String {
-    s.replace('_', "\\_")
-        .replace('%', "\\%")
+/// Text for LaTeX: backslash, `&`, `%`, `_` and `#` escaped (one escaper for every table).
+pub(crate) fn latex_escape(s: &str) -> String {
+    s.replace('\\', "\\textbackslash{}")
         .replace('&', "\\&")
+        .replace('%', "\\%")
+        .replace('_', "\\_")
         .replace('#', "\\#")
+}
+
+/// A booktabs table with its float: `% optbench: {tag}` comment, `caption` (already
+/// escaped), a label column and right-aligned `columns`, then `body` (rows ending in `\\`).
+pub(crate) fn booktabs(tag: &str, caption: &str, columns: &[String], body: &str) -> String {
+    let head: Vec<String> = columns.iter().map(|c| latex_escape(c)).collect();
+    format!(
+        "% optbench: {tag}\n\\begin{{table}}[t]\n\\centering\n\\caption{{{caption}}}\n\\begin{{tabular}}{{l{}}}\n\\toprule\n & {} \\\\\n\\midrule\n{body}\\bottomrule\n\\end{{tabular}}\n\\end{{table}}\n",
+        "r".repeat(columns.len()),
+        head.join(" & ")
+    )
 }
 
 /// The summary as a booktabs table: objectives x optimizers, median errors, best in bold,
@@ -524,24 +537,12 @@ pub fn paper_table_markdown(t: &crate::suite::PaperTable, a: &Analysis) -> Strin
 /// The same table in LaTeX (booktabs): ours above, the seed's number below in grey-free
 /// parentheses, so it prints in black and white.
 pub fn paper_table_latex(t: &crate::suite::PaperTable, a: &Analysis) -> String {
-    let mut s = String::new();
-    writeln!(s, "% optbench: {} ({})", t.id, a.suite).unwrap();
-    writeln!(s, "\\begin{{table}}[t]\n\\centering").unwrap();
-    writeln!(
-        s,
-        "\\caption{{{} Ours: median over trials; {} in parentheses.}}",
+    let caption = format!(
+        "{} Ours: median over trials; {} in parentheses.",
         latex_escape(&t.title),
         latex_escape(t.reference.as_deref().unwrap_or("the seed's single run"))
-    )
-    .unwrap();
-    writeln!(
-        s,
-        "\\begin{{tabular}}{{l{}}}\n\\toprule",
-        "r".repeat(t.columns.len())
-    )
-    .unwrap();
-    let head: Vec<String> = t.columns.iter().map(|c| latex_escape(c)).collect();
-    writeln!(s, " & {} \\\\\n\\midrule", head.join(" & ")).unwrap();
+    );
+    let mut body = String::new();
     for row in &t.rows {
         let ours: Vec<String> = row
             .cells
@@ -552,7 +553,7 @@ pub fn paper_table_latex(t: &crate::suite::PaperTable, a: &Analysis) -> String {
             })
             .collect();
         writeln!(
-            s,
+            body,
             "{} & {} \\\\",
             latex_escape(&row.label),
             ours.join(" & ")
@@ -570,11 +571,15 @@ pub fn paper_table_latex(t: &crate::suite::PaperTable, a: &Analysis) -> String {
                     }
                 })
                 .collect();
-            writeln!(s, " & {} \\\\", seed.join(" & ")).unwrap();
+            writeln!(body, " & {} \\\\", seed.join(" & ")).unwrap();
         }
     }
-    writeln!(s, "\\bottomrule\n\\end{{tabular}}\n\\end{{table}}").unwrap();
-    s
+    booktabs(
+        &format!("{} ({})", t.id, a.suite),
+        &caption,
+        &t.columns,
+        &body,
+    )
 }
 
 #[cfg(test)]
