@@ -1,10 +1,10 @@
 //! The `optbench diagnose` arguments and their dispatch (kept here so `src/cli.rs` only
 //! names the subcommand).
 
-use super::{Options, diagnose, proof, report};
+use super::{Options, TestSet, diagnose_with_tests, proof, report};
 use crate::error::{Error, Result};
 use crate::objective::source::resolve_path;
-use crate::physics::structure::Effect;
+use crate::physics::structure::{Effect, Hold};
 use crate::recording::{Columns, ReadOptions, Recording};
 use crate::results::atomic_write;
 use std::path::PathBuf;
@@ -50,6 +50,22 @@ pub struct DiagnoseArgs {
     /// Seconds per recording of the proof.
     #[arg(long, default_value_t = 4.0)]
     pub seconds: f64,
+    /// How the input moves between samples: zoh (a D/A staircase), linear, or bandlimited
+    /// (a continuous excitation sampled without aliasing, e.g. a multisine or sweep).
+    #[arg(long, default_value = "zoh")]
+    pub hold: String,
+    /// Test record (CSV, same columns), never used by the diagnosis: baseline and final
+    /// model are simulated from its input alone, from rest. Repeatable.
+    #[arg(long)]
+    pub test: Vec<PathBuf>,
+    /// As --test, for one period of a periodic steady state (two periods simulated, the
+    /// second scored). Repeatable.
+    #[arg(long)]
+    pub test_periodic: Vec<PathBuf>,
+    /// The validation record is one period of a periodic steady state (simulated twice,
+    /// the second period scored).
+    #[arg(long)]
+    pub validate_periodic: bool,
 }
 
 fn effects(spec: &Option<String>) -> Result<Vec<Effect>> {
@@ -81,11 +97,19 @@ pub fn run(a: DiagnoseArgs) -> Result<String> {
         .model
         .clone()
         .unwrap_or_else(|| if a.proof { "bouc-wen-n1" } else { "bouc-wen" }.to_string());
+    let hold = Hold::parse(&a.hold).ok_or_else(|| {
+        Error::Input(format!(
+            "--hold {}: unknown; valid: zoh, linear, bandlimited",
+            a.hold
+        ))
+    })?;
     let opts = Options {
         model,
         seed: a.seed,
         effects: effects(&a.effects)?,
         bootstrap: a.bootstrap,
+        hold,
+        validate_periodic: a.validate_periodic,
         ..Options::default()
     };
     opts.fixed_n()?;
@@ -136,7 +160,16 @@ pub fn run(a: DiagnoseArgs) -> Result<String> {
     };
     let train = read(t, &columns)?;
     let validate = read(v, &columns)?;
-    let d = diagnose(&train, &validate, &opts)?;
+    let mut tests = Vec::new();
+    for (paths, periodic) in [(&a.test, false), (&a.test_periodic, true)] {
+        for p in paths {
+            tests.push(TestSet {
+                recording: read(p, &columns)?,
+                periodic,
+            });
+        }
+    }
+    let d = diagnose_with_tests(&train, &validate, &tests, &opts)?;
     let out = a.out.unwrap_or_else(|| PathBuf::from("results/diagnose"));
     report::write(&d, &out)?;
     Ok(format!(

@@ -31,7 +31,7 @@ pub mod residual;
 use crate::error::{Error, Result};
 use crate::harness::TrialSeed;
 use crate::optimizer::operators::standard_normal;
-use crate::physics::structure::{Context, Effect, Structure};
+use crate::physics::structure::{Context, Effect, Hold, Placement, Structure};
 use crate::recording::Recording;
 use fit::{Budget, Fitted};
 use rand::RngExt;
@@ -62,6 +62,12 @@ pub struct Options {
     pub candidate_budget: Budget,
     /// At most this many extensions are accepted.
     pub max_rounds: usize,
+    /// How the input moves between samples (for the feedback placement's integrator).
+    pub hold: Hold,
+    /// Offer `dynamics` with the hysteresis inside the mechanical feedback too.
+    pub feedback: bool,
+    /// The validation record is one period of a periodic steady state.
+    pub validate_periodic: bool,
 }
 
 impl Default for Options {
@@ -87,6 +93,9 @@ impl Default for Options {
                 rounds: 2,
             },
             max_rounds: 4,
+            hold: Hold::Zoh,
+            feedback: true,
+            validate_periodic: false,
         }
     }
 }
@@ -127,6 +136,10 @@ pub struct ModelSummary {
 #[derive(Clone, Debug, Serialize)]
 pub struct Candidate {
     pub name: String,
+    /// For `dynamics`: `after-hysteresis` or `feedback` (hysteresis inside the mechanical
+    /// feedback, a restoring force).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub placement: Option<String>,
     /// Round (1 = added to the baseline).
     pub round: usize,
     /// The model it extends.
@@ -161,12 +174,37 @@ pub struct Diagnosis {
     pub unexplained: bool,
     /// Bootstrap scores of the battery under the fitted baseline, sorted.
     pub bootstrap_scores: Vec<f64>,
+    /// How the input moves between samples (`--hold`).
+    pub hold: String,
+    /// Free-run simulation on test records from their input alone (`--test`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub tests: Vec<FreeRun>,
     pub seed: u64,
     pub evaluations: u64,
     pub wall_s: f64,
     /// Series for the figures (not serialised).
     #[serde(skip)]
     pub series: Series,
+}
+
+/// A record the diagnosis never looks at, simulated from its input alone.
+#[derive(Clone, Debug)]
+pub struct TestSet {
+    pub recording: Recording,
+    /// One period of a periodic steady state: two periods are simulated and the second
+    /// scored (no initial transient).
+    pub periodic: bool,
+}
+
+/// Free-run RMSE of the baseline and the final model on a [`TestSet`].
+#[derive(Clone, Debug, Serialize)]
+pub struct FreeRun {
+    pub name: String,
+    pub samples: usize,
+    /// `from rest` or `periodic steady state`.
+    pub protocol: String,
+    pub baseline_rmse: f64,
+    pub final_rmse: f64,
 }
 
 /// Model outputs kept for the figures.
@@ -188,6 +226,25 @@ struct Data {
     yt: Arc<Vec<f64>>,
     uv: Vec<f64>,
     yv: Vec<f64>,
+    /// The validation record is one period of a periodic steady state.
+    periodic: bool,
+}
+
+impl Data {
+    /// `f`'s output on the validation input (recorded output `yv`, used only for the
+    /// record's own initial state); a periodic record is simulated over two periods and the
+    /// second returned, so no start-up transient is scored. Also the evaluations used.
+    fn validation_output(&self, f: &Fitted, yv: &[f64], seed: u64) -> (Vec<f64>, u64) {
+        let twice = |v: &[f64]| -> Vec<f64> { v.iter().chain(v).copied().collect() };
+        let (u, y) = if self.periodic {
+            (twice(&self.uv), twice(yv))
+        } else {
+            (self.uv.clone(), yv.to_vec())
+        };
+        let (theta, used) = fit::initial_state_for(f, &u, &y, 60, seed);
+        let (out, _) = f.structure.simulate_on(&theta, &f.linear.coef, &u, &y);
+        (out[out.len() - self.uv.len()..].to_vec(), used)
+    }
 }
 
 /// BIC `N ln(SSE/N) + k ln N` of a training fit.
@@ -241,11 +298,8 @@ struct Evaluated {
 
 fn evaluate(mut f: Fitted, d: &Data, opts: &Options) -> Evaluated {
     let (out_t, _) = f.structure.simulate(&f.theta, &f.linear.coef, &d.ut);
-    let (theta_v, used) = fit::initial_state_for(&f, &d.uv, &d.yv, 60, opts.seed);
+    let (out_v, used) = d.validation_output(&f, &d.yv, opts.seed);
     f.evaluations += used;
-    let (out_v, _) = f
-        .structure
-        .simulate_on(&theta_v, &f.linear.coef, &d.uv, &d.yv);
     let ev: Vec<f64> = d.yv.iter().zip(&out_v).map(|(a, b)| a - b).collect();
     let tests = residual::battery(&d.uv, &ev, opts.lags, opts.alpha);
     Evaluated {
@@ -293,8 +347,7 @@ fn summary(e: &Evaluated, d: &Data, boot: &[f64], seed: u64) -> ModelSummary {
 fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> (Vec<f64>, u64) {
     let st = &base.structure;
     let (mt, _) = st.simulate(&base.theta, &base.linear.coef, &d.ut);
-    let (theta_v, _) = fit::initial_state_for(base, &d.uv, &d.yv, 60, opts.seed);
-    let (mv, _) = st.simulate_on(&theta_v, &base.linear.coef, &d.uv, &d.yv);
+    let (mv, _) = d.validation_output(base, &d.yv, opts.seed);
     let runs: Vec<(f64, u64)> = (0..opts.bootstrap)
         .into_par_iter()
         .map(|b| {
@@ -322,8 +375,7 @@ fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> (Vec
                 },
                 opts.seed ^ (0xb00 + b as u64),
             );
-            let (tv, used) = fit::initial_state_for(&refit, &d.uv, &yv, 60, opts.seed);
-            let (ov, _) = st.simulate_on(&tv, &refit.linear.coef, &d.uv, &yv);
+            let (ov, used) = d.validation_output(&refit, &yv, opts.seed);
             let ev: Vec<f64> = yv.iter().zip(&ov).map(|(a, b)| a - b).collect();
             let score = residual::score(&residual::battery(&d.uv, &ev, opts.lags, opts.alpha));
             (score, refit.evaluations + used)
@@ -334,8 +386,65 @@ fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> (Vec
     (scores, runs.iter().map(|r| r.1).sum())
 }
 
+/// The extensions a round tries on `parent`: every effect not yet in it, and `dynamics`
+/// in both placements (after the hysteresis, and around it as a restoring force) while
+/// the model has none. Once the hysteresis sits in the feedback loop, `rate-dependence` is
+/// not offered (see [`Structure::placed`]).
+fn candidate_pool(parent: &Structure, opts: &Options) -> Vec<(Effect, Placement)> {
+    let mut pool = Vec::new();
+    for &e in &opts.effects {
+        if parent.has(e)
+            || (parent.placement() == Placement::Feedback && e == Effect::RateDependence)
+        {
+            continue;
+        }
+        pool.push((e, parent.placement()));
+        if e == Effect::Dynamics && opts.feedback {
+            pool.push((e, Placement::Feedback));
+        }
+    }
+    pool
+}
+
+/// RMSE of `f` simulated on `t`'s input alone: initial hysteretic and creep states at rest
+/// (nothing is fitted to `t`'s output); for a periodic set the second of two periods.
+fn free_run(f: &Fitted, t: &TestSet) -> f64 {
+    let st = &f.structure;
+    let mut theta = f.theta.clone();
+    if let Some(i) = st.specs().iter().position(|s| s.name == "g0_frac") {
+        theta[i] = 0.0;
+    }
+    let mut coef = f.linear.coef.clone();
+    for j in st.initial_state_coefs() {
+        coef[j] = 0.0;
+    }
+    let r = &t.recording;
+    let u: Vec<f64> = if t.periodic {
+        r.u.iter().chain(&r.u).copied().collect()
+    } else {
+        r.u.clone()
+    };
+    let (out, _) = st.simulate(&theta, &coef, &u);
+    let e: Vec<f64> = out[u.len() - r.len()..]
+        .iter()
+        .zip(&r.y)
+        .map(|(m, y)| y - m)
+        .collect();
+    residual::rms(&e)
+}
+
 /// Diagnoses `train` against `validate` (same sampling interval).
 pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Result<Diagnosis> {
+    diagnose_with_tests(train, validate, &[], opts)
+}
+
+/// [`diagnose`], then the baseline and the final model in free run on each of `tests`.
+pub fn diagnose_with_tests(
+    train: &Recording,
+    validate: &Recording,
+    tests: &[TestSet],
+    opts: &Options,
+) -> Result<Diagnosis> {
     let started = std::time::Instant::now();
     let fixed_n = opts.fixed_n()?;
     let dt = train.dt();
@@ -345,6 +454,17 @@ pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Resu
             "{} is sampled every {dv} s but {} every {dt} s; diagnose needs one sampling interval",
             validate.name, train.name
         )));
+    }
+    for t in tests {
+        let r = &t.recording;
+        if ((r.dt() - dt) / dt).abs() > 1e-6 {
+            return Err(Error::Input(format!(
+                "{} is sampled every {} s but {} every {dt} s; test records need the training's interval",
+                r.name,
+                r.dt(),
+                train.name
+            )));
+        }
     }
     if train.len() < 200 || validate.len() < 200 {
         return Err(Error::Input(format!(
@@ -360,8 +480,9 @@ pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Resu
         yt: Arc::new(train.y.clone()),
         uv: validate.u.clone(),
         yv: validate.y.clone(),
+        periodic: opts.validate_periodic,
     };
-    let ctx = Context::from_training(&train.u, dt);
+    let ctx = Context::from_training(&train.u, dt).with_hold(opts.hold);
     let noise = {
         let (a, b) = (
             residual::noise_floor(&train.y),
@@ -438,6 +559,7 @@ pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Resu
     let baseline = summary(&base, &d, &boot, opts.seed);
 
     let base_out = [base.out_t.clone(), base.out_v.clone()];
+    let base_fitted = base.fitted.clone();
     let mut current = base;
     let mut current_summary = baseline.clone();
     let mut candidates = Vec::new();
@@ -445,34 +567,38 @@ pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Resu
     let nt = d.ut.len();
     for round in 1..=opts.max_rounds {
         let parent = current.fitted.structure.clone();
-        let pool: Vec<Effect> = opts
-            .effects
-            .iter()
-            .copied()
-            .filter(|e| !parent.has(*e))
-            .collect();
+        let pool = candidate_pool(&parent, opts);
         if pool.is_empty() {
             break;
         }
         let tried: Vec<Evaluated> = pool
             .par_iter()
-            .map(|&e| {
-                let st = parent.extended(e);
+            .map(|&(e, placement)| {
+                let moved = placement != parent.placement();
+                let st = parent.extended(e).with_placement(placement);
                 let start = parent.embed(&current.fitted.theta, &st);
+                // A nested candidate searches its own parameters; a new placement is not
+                // nested, so its oscillator and loop shape are searched afresh, with the
+                // baseline's budget.
                 let free: Vec<usize> = st
                     .specs()
                     .iter()
                     .enumerate()
-                    .filter(|(_, s)| s.effect == Some(e))
+                    .filter(|(_, s)| s.effect == Some(e) || (moved && s.effect.is_none()))
                     .map(|(i, _)| i)
                     .collect();
+                let budget = if moved {
+                    opts.baseline_budget
+                } else {
+                    opts.candidate_budget
+                };
                 let f = fit::fit(
                     &st,
                     &d.ut,
                     &d.yt,
                     Some(&start),
                     Some(&free),
-                    opts.candidate_budget,
+                    budget,
                     opts.seed.wrapping_add(round as u64),
                 );
                 evaluate(f, &d, opts)
@@ -482,7 +608,7 @@ pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Resu
         let band = current_summary.validate_band;
         let mut best: Option<(usize, f64)> = None;
         let first = candidates.len();
-        for (i, (e, c)) in pool.iter().zip(&tried).enumerate() {
+        for (i, ((e, placement), c)) in pool.iter().zip(&tried).enumerate() {
             evaluations += c.fitted.evaluations;
             let delta = bic(&c.fitted, nt) - parent_bic;
             let bic_ok = delta < -opts.bic_margin;
@@ -509,6 +635,7 @@ pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Resu
             }
             candidates.push(Candidate {
                 name: e.name().into(),
+                placement: (*e == Effect::Dynamics).then(|| placement.name().to_string()),
                 round,
                 parent: parent.label(),
                 delta_bic: delta,
@@ -522,10 +649,24 @@ pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Resu
         }
         let Some((i, _)) = best else { break };
         candidates[first + i].accepted = true;
-        left_out.push(pool[i].name().to_string());
+        left_out.push(pool[i].0.name().to_string());
         current = tried.into_iter().nth(i).expect("index of a candidate");
         current_summary = summary(&current, &d, &boot, opts.seed);
     }
+    let free_runs: Vec<FreeRun> = tests
+        .iter()
+        .map(|t| FreeRun {
+            name: t.recording.name.clone(),
+            samples: t.recording.len(),
+            protocol: if t.periodic {
+                "periodic steady state (second of two periods)".into()
+            } else {
+                "from rest".into()
+            },
+            baseline_rmse: free_run(&base_fitted, t),
+            final_rmse: free_run(&current.fitted, t),
+        })
+        .collect();
     let threshold = boot.last().copied().unwrap_or(1.0).max(1.0);
     let unexplained = current_summary.p_value <= 0.05 && current.score > threshold;
     let series = Series {
@@ -552,6 +693,8 @@ pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Resu
         final_model: current_summary,
         unexplained,
         bootstrap_scores: boot,
+        hold: opts.hold.name().into(),
+        tests: free_runs,
         seed: opts.seed,
         evaluations,
         wall_s: started.elapsed().as_secs_f64(),

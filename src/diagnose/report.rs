@@ -76,7 +76,10 @@ pub fn text(d: &Diagnosis) -> String {
             s,
             "  {} {:<16} ΔBIC {:>9}  validation RMSE {}{u}",
             if c.accepted { "+" } else { " " },
-            c.name,
+            match &c.placement {
+                Some(p) if p != "after-hysteresis" => format!("{}({p})", c.name),
+                _ => c.name.clone(),
+            },
             f(c.delta_bic),
             f(c.validate_rmse)
         );
@@ -100,6 +103,17 @@ pub fn text(d: &Diagnosis) -> String {
         for (k, v) in &fm.params {
             let _ = writeln!(s, "  {k:<22} {}", sig(*v, 5));
         }
+    }
+    for t in &d.tests {
+        let _ = writeln!(
+            s,
+            "test {} ({} samples, free run from the input alone, {}): baseline RMSE {}{u}, final RMSE {}{u}",
+            t.name,
+            t.samples,
+            t.protocol,
+            f(t.baseline_rmse),
+            f(t.final_rmse)
+        );
     }
     let _ = writeln!(
         s,

@@ -7,6 +7,8 @@
 //!   discretised, each with a one-step API.
 //! - [`rbf`]: the Gaussian RBF network, its NARX model (one-step and free-run) and the
 //!   back-propagation baseline.
+//! - [`restoring`]: an oscillator whose restoring force is hysteretic (the hysteresis
+//!   inside the mechanical feedback, as in the Bouc-Wen benchmark).
 //! - [`structure`]: Bouc-Wen with switchable extensions (delay, lags, saturation, asymmetry,
 //!   rate dependence, creep, a mode, drift): the model family of `optbench diagnose`.
 //! - [`twin`]: the simulated PZBA-00030-like actuator, a switchable chain of the above plus a
@@ -18,5 +20,6 @@ pub mod fastmath;
 pub mod linear;
 pub mod rbf;
 pub mod rbf_fast;
+pub mod restoring;
 pub mod structure;
 pub mod twin;

@@ -35,6 +35,8 @@
 
 use super::bouc_wen::{BoucWenKernel, BoucWenParams, cost_cap};
 use super::linear::{Delay, LowPass, Mode};
+pub use super::restoring::Hold;
+use super::restoring::{Oscillator, upsample};
 
 /// A piece of physics the plain Bouc-Wen model leaves out.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -119,6 +121,40 @@ pub struct Context {
     pub rate_ref: f64,
     /// Duration of the training record (s): the time scale of the drift polynomial.
     pub t_ref: f64,
+    /// How the input moves between samples, for the feedback placement's integrator (the
+    /// blocks of the chain are discretised for a zero-order hold).
+    pub hold: Hold,
+}
+
+/// Where the `dynamics` mode sits relative to the hysteresis.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Placement {
+    /// A mode after the hysteresis: `y = G(s) h(u)` (a piezo stack driving a structure).
+    #[default]
+    After,
+    /// The hysteresis inside the mechanical feedback, a restoring force:
+    /// `m ÿ + c ẏ + k y + z(y) = u` ([`super::restoring`]).
+    Feedback,
+}
+
+impl Placement {
+    /// The name in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Placement::After => "after-hysteresis",
+            Placement::Feedback => "feedback",
+        }
+    }
+
+    /// One line for humans.
+    pub fn meaning(self) -> &'static str {
+        match self {
+            Placement::After => "a structural mode after the hysteresis",
+            Placement::Feedback => {
+                "the hysteresis inside the mechanical feedback (a hysteretic restoring force)"
+            }
+        }
+    }
 }
 
 impl Context {
@@ -136,7 +172,14 @@ impl Context {
             u_ref,
             rate_ref: ms.sqrt().max(1e-300),
             t_ref: (n as f64 * dt).max(dt),
+            hold: Hold::Zoh,
         }
+    }
+
+    /// The same scales with inputs moving between samples by `hold`.
+    pub fn with_hold(mut self, hold: Hold) -> Context {
+        self.hold = hold;
+        self
     }
 }
 
@@ -146,6 +189,7 @@ pub struct Structure {
     effects: Vec<Effect>,
     fixed_n: Option<f64>,
     ctx: Context,
+    placement: Placement,
     specs: Vec<ParamSpec>,
 }
 
@@ -162,7 +206,8 @@ pub enum Status {
 /// The fitted linear coefficients and the training cost of one shape.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LinearFit {
-    /// `d_e, d0, α` and, with `offset-drift`, `a1, a2`.
+    /// [`Structure::linear_names`]: `d_e, d0, α` (feedback: `scale, d0`), then the drift's
+    /// and the creep states'.
     pub coef: Vec<f64>,
     /// `Σ e²/2` (penalty when unstable).
     pub cost: f64,
@@ -188,13 +233,35 @@ struct Shape {
     creep_tau2: f64,
     mode_p: f64,
     zeta: f64,
+    /// Feedback placement: oscillator frequency (Hz), damping, hysteretic share, shape.
+    fb_hz: f64,
+    fb_zeta: f64,
+    fb_r: f64,
+    fb_b: f64,
+    fb_c: f64,
 }
 
 impl Structure {
     /// The plain model plus `effects` (any order, duplicates ignored); `fixed_n` pins the
     /// Bouc-Wen exponent (e.g. 1) instead of fitting it.
     pub fn new(effects: &[Effect], fixed_n: Option<f64>, ctx: Context) -> Structure {
+        Self::placed(effects, fixed_n, ctx, Placement::After)
+    }
+
+    /// The model with `dynamics` at `placement`. With [`Placement::Feedback`] `dynamics` is
+    /// always on (it is the oscillator the hysteresis sits in) and `rate-dependence` is not
+    /// available (its rate would be the displacement's, not the drive's).
+    pub fn placed(
+        effects: &[Effect],
+        fixed_n: Option<f64>,
+        ctx: Context,
+        placement: Placement,
+    ) -> Structure {
         let mut effects = effects.to_vec();
+        if placement == Placement::Feedback {
+            effects.push(Effect::Dynamics);
+            effects.retain(|e| *e != Effect::RateDependence);
+        }
         effects.sort();
         effects.dedup();
         let dt = ctx.dt;
@@ -206,10 +273,35 @@ impl Structure {
             neutral,
             effect,
         };
-        let mut specs = vec![
-            spec("log10_s", -2.0, 1.0, -0.5, None),
-            spec("w", 0.0, 1.5, 0.5, None),
-        ];
+        let hi = (0.5 / dt).log10();
+        let lo_hz = (0.005 / dt).log10();
+        let mut specs = match placement {
+            Placement::After => vec![
+                spec("log10_s", -2.0, 1.0, -0.5, None),
+                spec("w", 0.0, 1.5, 0.5, None),
+            ],
+            // Frequency and damping first: the fit's grid covers them (narrow basins).
+            // `b = c = 0` is the linear oscillator; `b + c < 0` a hardening loop.
+            Placement::Feedback => vec![
+                spec(
+                    "fb_log10_hz",
+                    lo_hz,
+                    hi,
+                    0.5 * (lo_hz + hi),
+                    Some(Effect::Dynamics),
+                ),
+                spec(
+                    "fb_log10_zeta",
+                    0.002f64.log10(),
+                    1.5f64.log10(),
+                    0.05f64.log10(),
+                    Some(Effect::Dynamics),
+                ),
+                spec("fb_r", 0.0, 0.95, 0.5, Some(Effect::Dynamics)),
+                spec("fb_b", -4.0, 4.0, 0.0, None),
+                spec("fb_c", -4.0, 4.0, 0.0, None),
+            ],
+        };
         if fixed_n.is_none() {
             specs.push(spec("n", 0.5, 3.0, 1.0, None));
         }
@@ -241,11 +333,11 @@ impl Structure {
                     specs.push(spec("creep_g2", 0.0, 0.2, 0.0, x));
                     specs.push(spec("creep_log10_tau2_s", mid, hi, 0.5 * (mid + hi), x));
                 }
+                Effect::Dynamics if placement == Placement::Feedback => {}
                 Effect::Dynamics => {
                     // Modes from fs/200 to Nyquist on a log scale (above it a mode aliases);
                     // the upper end itself is a wire (no mode).
-                    let hi = (0.5 / dt).log10();
-                    specs.push(spec("mode_log10_hz", (0.005 / dt).log10(), hi, hi, x));
+                    specs.push(spec("mode_log10_hz", lo_hz, hi, hi, x));
                     let z = (0.005f64.log10(), 1.5f64.log10());
                     specs.push(spec("mode_log10_zeta", z.0, z.1, 0.3f64.log10(), x));
                 }
@@ -256,8 +348,14 @@ impl Structure {
             effects,
             fixed_n,
             ctx,
+            placement,
             specs,
         }
+    }
+
+    /// Where `dynamics` sits.
+    pub fn placement(&self) -> Placement {
+        self.placement
     }
 
     /// The extensions, in chain order.
@@ -270,12 +368,15 @@ impl Structure {
         self.effects.contains(&e)
     }
 
-    /// `bouc-wen+creep+dynamics`.
+    /// `bouc-wen+creep+dynamics`; the feedback placement reads `dynamics(feedback)`.
     pub fn label(&self) -> String {
         let mut s = String::from("bouc-wen");
         for e in &self.effects {
             s.push('+');
             s.push_str(e.name());
+            if *e == Effect::Dynamics && self.placement == Placement::Feedback {
+                s.push_str("(feedback)");
+            }
         }
         s
     }
@@ -297,7 +398,10 @@ impl Structure {
 
     /// Names of the linear coefficients, in [`LinearFit::coef`] order.
     pub fn linear_names(&self) -> Vec<&'static str> {
-        let mut v = vec!["d_e", "d0", "alpha"];
+        let mut v = match self.placement {
+            Placement::After => vec!["d_e", "d0", "alpha"],
+            Placement::Feedback => vec!["scale", "d0"],
+        };
         if self.has(Effect::OffsetDrift) {
             v.extend(["drift_a1", "drift_a2"]);
         }
@@ -328,7 +432,13 @@ impl Structure {
     pub fn extended(&self, e: Effect) -> Structure {
         let mut effects = self.effects.clone();
         effects.push(e);
-        Structure::new(&effects, self.fixed_n, self.ctx)
+        Structure::placed(&effects, self.fixed_n, self.ctx, self.placement)
+    }
+
+    /// The same effects with `dynamics` at `placement` (not nested across placements:
+    /// [`Self::embed`] carries the shared parameters, the rest start neutral).
+    pub fn with_placement(&self, placement: Placement) -> Structure {
+        Structure::placed(&self.effects, self.fixed_n, self.ctx, placement)
     }
 
     /// `theta` (a shape vector of this structure) carried into `other`, which must contain
@@ -364,6 +474,11 @@ impl Structure {
             creep_tau2: 1.0,
             mode_p: 0.0,
             zeta: 0.3,
+            fb_hz: 1.0,
+            fb_zeta: 0.05,
+            fb_r: 0.5,
+            fb_b: 0.0,
+            fb_c: 0.0,
         };
         for (spec, &x) in self.specs.iter().zip(theta) {
             match spec.name {
@@ -396,6 +511,11 @@ impl Structure {
                     }
                 }
                 "mode_log10_zeta" => sh.zeta = 10f64.powf(x),
+                "fb_log10_hz" => sh.fb_hz = 10f64.powf(x),
+                "fb_log10_zeta" => sh.fb_zeta = 10f64.powf(x),
+                "fb_r" => sh.fb_r = x,
+                "fb_b" => sh.fb_b = x,
+                "fb_c" => sh.fb_c = x,
                 _ => {}
             }
         }
@@ -420,6 +540,9 @@ impl Structure {
     fn columns(&self, theta: &[f64], u: &[f64]) -> (Vec<Vec<f64>>, Status) {
         let n = u.len();
         let sh = self.shape(theta);
+        if self.placement == Placement::Feedback {
+            return self.columns_feedback(&sh, u);
+        }
         let ctx = &self.ctx;
         let dt = ctx.dt;
         let mut cv = vec![0.0; n];
@@ -567,10 +690,18 @@ impl Structure {
             cg[k] = b;
         }
         let mut cols = vec![cv, vec![1.0; n], cg];
+        cols.extend(self.tail_columns(&sh, n));
+        (cols, status)
+    }
+
+    /// The drift columns `t/T, (t/T)²` and the creep elements' initial-state decays.
+    fn tail_columns(&self, sh: &Shape, n: usize) -> Vec<Vec<f64>> {
+        let dt = self.ctx.dt;
+        let mut cols = Vec::new();
         if self.has(Effect::OffsetDrift) {
-            let t: Vec<f64> = (0..n).map(|k| k as f64 * dt / ctx.t_ref).collect();
+            let t: Vec<f64> = (0..n).map(|k| k as f64 * dt / self.ctx.t_ref).collect();
             cols.push(t.iter().map(|x| x * x).collect());
-            cols.insert(3, t);
+            cols.insert(0, t);
         }
         if self.has(Effect::Creep) {
             for tau in [sh.creep_tau, sh.creep_tau2] {
@@ -583,7 +714,108 @@ impl Structure {
                 });
             }
         }
-        (cols, status)
+        cols
+    }
+
+    /// [`Self::columns`] for the feedback placement: `[creep(y), 1, tail]`, `y` the unit-free
+    /// oscillator's displacement driven by the chain's output over `u_ref`.
+    fn columns_feedback(&self, sh: &Shape, u: &[f64]) -> (Vec<Vec<f64>>, Status) {
+        let n = u.len();
+        let ctx = &self.ctx;
+        let dt = ctx.dt;
+        let osc = Oscillator {
+            omega: 2.0 * std::f64::consts::PI * sh.fb_hz,
+            zeta: sh.fb_zeta,
+            r: sh.fb_r,
+            b: sh.fb_b,
+            c: sh.fb_c,
+            n: sh.n,
+        };
+        let finite = [
+            sh.n,
+            sh.g0,
+            sh.delay,
+            sh.lag,
+            sh.sat_c,
+            sh.q,
+            sh.creep_g,
+            sh.creep_tau,
+            sh.creep_g2,
+            sh.creep_tau2,
+            sh.fb_hz,
+            sh.fb_zeta,
+            sh.fb_r,
+            sh.fb_b,
+            sh.fb_c,
+        ]
+        .iter()
+        .all(|x| x.is_finite());
+        let tail = self.tail_columns(sh, n);
+        let failed = |at: usize| {
+            let mut cols = vec![vec![0.0; n], vec![1.0; n]];
+            cols.extend(tail.iter().cloned());
+            (cols, Status::Unstable { at })
+        };
+        if n == 0 || !finite {
+            return failed(0);
+        }
+        // The command at the samples (delay), between them (hold), lagged on the fine grid.
+        let mut x = u.to_vec();
+        if self.has(Effect::Delay) && sh.delay > 0.0 {
+            let mut d = Delay::new(sh.delay.clamp(0.0, 1e4) * dt, dt);
+            d.settle(u[0]);
+            for v in &mut x {
+                *v = d.step(*v);
+            }
+        }
+        let m = osc.substeps(dt);
+        let mut fine = upsample(&x, ctx.hold, m);
+        if self.has(Effect::InputLag) && sh.lag > 0.0 {
+            let mut lp = LowPass::new(sh.lag, dt / (2 * m) as f64);
+            lp.settle(u[0]);
+            let per = fine.per();
+            for (i, v) in fine.values.iter_mut().enumerate() {
+                // Each interval's first value is the previous one's last instant.
+                *v = if i % per == 0 {
+                    lp.output()
+                } else {
+                    lp.step(*v)
+                };
+            }
+        }
+        let limit = if sh.sat_c > 0.0 {
+            ctx.u_ref / sh.sat_c
+        } else {
+            f64::INFINITY
+        };
+        let drive = |x: f64| {
+            let x = x.clamp(-limit, limit);
+            (x + sh.q * x * x / ctx.u_ref) / ctx.u_ref
+        };
+        fine.map(drive);
+        let y = match osc.respond(&fine, dt, drive(u[0]), sh.g0.clamp(-1.0, 1.0)) {
+            Ok(y) => y,
+            Err(at) => return failed(at),
+        };
+        let mut out = y.clone();
+        if self.has(Effect::Creep) {
+            for (g, tau) in [(sh.creep_g, sh.creep_tau), (sh.creep_g2, sh.creep_tau2)] {
+                if g != 0.0 {
+                    let mut lp = LowPass::new(tau, dt);
+                    lp.settle(y[0]);
+                    for (o, &v) in out.iter_mut().zip(&y).skip(1) {
+                        *o += g * lp.step(v);
+                    }
+                    out[0] += g * y[0];
+                }
+            }
+        }
+        if out.iter().any(|v| !v.is_finite()) {
+            return failed(0);
+        }
+        let mut cols = vec![out, vec![1.0; n]];
+        cols.extend(tail);
+        (cols, Status::Ok)
     }
 
     /// Fits the linear coefficients of shape `theta` to `(u, y)` by least squares and
@@ -673,18 +905,47 @@ impl Structure {
     /// physical units (seconds, Hz, fractions).
     pub fn named_params(&self, theta: &[f64], coef: &[f64]) -> Vec<(String, f64)> {
         let sh = self.shape(theta);
-        let sigma = (sh.s * self.ctx.u_ref).powf(-sh.n);
-        let alpha = coef.get(2).copied().unwrap_or(0.0);
-        let scale = alpha.abs().powf(1.0 - sh.n);
-        let mut v: Vec<(String, f64)> = vec![
-            ("d_e".into(), coef[0]),
-            ("alpha".into(), alpha),
-            ("beta".into(), sh.w * sigma * scale),
-            ("gamma".into(), (1.0 - sh.w) * sigma * scale),
-            ("n".into(), sh.n),
-            ("d0".into(), coef[1]),
-            ("h0".into(), alpha * sh.g0 * sh.s * self.ctx.u_ref),
-        ];
+        let mut v: Vec<(String, f64)> = match self.placement {
+            Placement::After => {
+                let sigma = (sh.s * self.ctx.u_ref).powf(-sh.n);
+                let alpha = coef.get(2).copied().unwrap_or(0.0);
+                let scale = alpha.abs().powf(1.0 - sh.n);
+                vec![
+                    ("d_e".into(), coef[0]),
+                    ("alpha".into(), alpha),
+                    ("beta".into(), sh.w * sigma * scale),
+                    ("gamma".into(), (1.0 - sh.w) * sigma * scale),
+                    ("n".into(), sh.n),
+                    ("d0".into(), coef[1]),
+                    ("h0".into(), alpha * sh.g0 * sh.s * self.ctx.u_ref),
+                ]
+            }
+            Placement::Feedback => {
+                // m ÿ + c ẏ + k y + z = u, ż = α ẏ - β|ẏ||z|^(n-1) z - γ ẏ|z|^n, in the
+                // data's units (input per output for stiffnesses).
+                let a = coef.first().copied().unwrap_or(0.0);
+                let stiff = self.ctx.u_ref / a;
+                let w = 2.0 * std::f64::consts::PI * sh.fb_hz;
+                let mass = stiff / (w * w);
+                let alpha = sh.fb_r * stiff;
+                let pa = a.abs().powf(-sh.n) * alpha.abs().powf(1.0 - sh.n);
+                vec![
+                    ("mass".into(), mass),
+                    ("damping".into(), 2.0 * sh.fb_zeta * w * mass),
+                    ("stiffness".into(), (1.0 - sh.fb_r) * stiff),
+                    ("alpha".into(), alpha),
+                    ("beta".into(), sh.fb_b * pa),
+                    ("gamma".into(), sh.fb_c * pa),
+                    ("n".into(), sh.n),
+                    ("d0".into(), coef.get(1).copied().unwrap_or(0.0)),
+                    ("z0".into(), alpha * a * sh.g0),
+                    ("natural_freq_hz".into(), sh.fb_hz),
+                    ("zeta".into(), sh.fb_zeta),
+                ]
+            }
+        };
+        let lin = self.linear_names();
+        let at = |name: &str| lin.iter().position(|n| *n == name).map_or(0.0, |i| coef[i]);
         let dt = self.ctx.dt;
         for &e in &self.effects {
             match e {
@@ -711,6 +972,7 @@ impl Structure {
                     v.push(("creep_gain_slow".into(), sh.creep_g2));
                     v.push(("creep_tau_slow_s".into(), sh.creep_tau2));
                 }
+                Effect::Dynamics if self.placement == Placement::Feedback => {}
                 Effect::Dynamics => {
                     let f = if sh.mode_p > 0.0 {
                         1.0 / (2.0 * std::f64::consts::PI * sh.mode_p)
@@ -722,8 +984,8 @@ impl Structure {
                 }
                 Effect::OffsetDrift => {
                     let t = self.ctx.t_ref;
-                    v.push(("drift_per_s".into(), coef[3] / t));
-                    v.push(("drift_per_s2".into(), coef[4] / (t * t)));
+                    v.push(("drift_per_s".into(), at("drift_a1") / t));
+                    v.push(("drift_per_s2".into(), at("drift_a2") / (t * t)));
                 }
             }
         }
@@ -999,6 +1261,135 @@ mod tests {
                 })
                 .collect();
             assert!(st.fit_linear(&theta, &u, &y).cost.is_finite());
+        }
+    }
+
+    /// The theta of physical restoring-force parameters `(m, c, k, α, β, γ, n)` on `ctx`,
+    /// and the output scale `a` (the structure's first linear coefficient).
+    fn feedback_theta(st: &Structure, p: [f64; 7]) -> (Vec<f64>, f64) {
+        let [m, c, k, alpha, beta, gamma, n] = p;
+        let stiff = k + alpha;
+        let a = st.context().u_ref / stiff;
+        let w = (stiff / m).sqrt();
+        let pa = a.powf(n) * alpha.powf(n - 1.0);
+        let theta = st
+            .specs()
+            .iter()
+            .map(|s| match s.name {
+                "fb_log10_hz" => (w / (2.0 * std::f64::consts::PI)).log10(),
+                "fb_log10_zeta" => (c / (2.0 * (stiff * m).sqrt())).log10(),
+                "fb_r" => alpha / stiff,
+                "fb_b" => beta * pa,
+                "fb_c" => gamma * pa,
+                "n" => n,
+                _ => s.neutral,
+            })
+            .collect();
+        (theta, a)
+    }
+
+    #[test]
+    fn feedback_placement_is_the_physical_restoring_force_model() {
+        // Data from the oscillator in physical form; the structure's fit reproduces them
+        // and its named parameters are the physical ones.
+        let dt = 1.0 / 750.0;
+        let u: Vec<f64> = (0..3000)
+            .map(|k| {
+                let t = k as f64 * dt;
+                60.0 * (2.0 * std::f64::consts::PI * 13.0 * t).sin()
+                    + 35.0 * (2.0 * std::f64::consts::PI * 41.0 * t + 1.0).sin()
+            })
+            .collect();
+        let ctx = Context::from_training(&u, dt).with_hold(Hold::Linear);
+        let st = Structure::placed(&[], None, ctx, Placement::Feedback);
+        assert!(st.has(Effect::Dynamics));
+        assert_eq!(st.label(), "bouc-wen+dynamics(feedback)");
+        let phys = [2.0, 10.0, 5e4, 5e4, 800.0, -1100.0, 1.3];
+        let (theta, a) = feedback_theta(&st, phys);
+        let osc = Oscillator {
+            omega: 2.0 * std::f64::consts::PI * 10f64.powf(theta[0]),
+            zeta: 10f64.powf(theta[1]),
+            r: theta[2],
+            b: theta[3],
+            c: theta[4],
+            n: 1.3,
+        };
+        let x: Vec<f64> = u.iter().map(|v| v / ctx.u_ref).collect();
+        let fine = upsample(&x, Hold::Linear, osc.substeps(dt));
+        let yi = osc.respond(&fine, dt, x[0], 0.0).unwrap();
+        let y: Vec<f64> = yi.iter().map(|v| a * v + 3e-5).collect();
+        let lf = st.fit_linear(&theta, &u, &y);
+        assert_eq!(lf.status, Status::Ok);
+        assert!((lf.coef[0] / a - 1.0).abs() < 1e-9, "{:?}", lf.coef);
+        assert!((lf.coef[1] - 3e-5).abs() < 1e-12);
+        assert!(lf.cost < 1e-20, "{}", lf.cost);
+        let named: std::collections::BTreeMap<String, f64> =
+            st.named_params(&theta, &lf.coef).into_iter().collect();
+        for (name, want) in [
+            ("mass", 2.0),
+            ("damping", 10.0),
+            ("stiffness", 5e4),
+            ("alpha", 5e4),
+            ("beta", 800.0),
+            ("gamma", -1100.0),
+            ("n", 1.3),
+        ] {
+            assert!(
+                (named[name] / want - 1.0).abs() < 1e-6,
+                "{name}: {}",
+                named[name]
+            );
+        }
+    }
+
+    #[test]
+    fn feedback_placement_embeds_shared_parameters_and_stays_finite() {
+        let dt = 1e-3;
+        let u = sine(800, 5.0, dt);
+        let ctx = Context::from_training(&u, dt);
+        let after = Structure::new(&[Effect::Delay], None, ctx);
+        let fb = after.with_placement(Placement::Feedback);
+        assert_eq!(fb.effects(), &[Effect::Delay, Effect::Dynamics]);
+        assert_eq!(fb.linear_names(), vec!["scale", "d0"]);
+        let mut theta: Vec<f64> = after.specs().iter().map(|s| s.neutral).collect();
+        let i = after
+            .specs()
+            .iter()
+            .position(|s| s.name == "delay_samples")
+            .unwrap();
+        theta[i] = 2.5;
+        let moved = after.embed(&theta, &fb);
+        let j = fb
+            .specs()
+            .iter()
+            .position(|s| s.name == "delay_samples")
+            .unwrap();
+        assert_eq!(moved[j], 2.5);
+        // Rate-dependence is not offered around a feedback loop.
+        assert!(
+            !fb.extended(Effect::RateDependence)
+                .has(Effect::RateDependence)
+        );
+        // Every corner of the box: a finite cost, never NaN.
+        let y: Vec<f64> = u.iter().map(|v| 0.3 * v).collect();
+        let specs = fb.specs().to_vec();
+        for corner in 0..(1usize << specs.len()) {
+            let th: Vec<f64> = specs
+                .iter()
+                .enumerate()
+                .map(|(b, s)| {
+                    if corner >> b & 1 == 1 {
+                        s.upper
+                    } else {
+                        s.lower
+                    }
+                })
+                .collect();
+            let lf = fb.fit_linear(&th, &u, &y);
+            assert!(
+                lf.cost.is_finite() && lf.cost <= 2.0 * cost_cap(&y),
+                "{th:?}"
+            );
         }
     }
 
