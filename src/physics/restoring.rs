@@ -343,8 +343,8 @@ mod tests {
         let f_ref = 100.0;
         let a = f_ref / (k + alpha);
         let osc = Oscillator {
-            omega: ((k + alpha) / m as f64).sqrt(),
-            zeta: c / (2.0 * ((k + alpha) * m as f64).sqrt()),
+            omega: ((k + alpha) / m).sqrt(),
+            zeta: c / (2.0 * ((k + alpha) * m).sqrt()),
             r: alpha / (k + alpha),
             b: beta * gamma * a,
             c: beta * delta * a,
