@@ -339,7 +339,8 @@ mod tests {
             &ReadOptions::default(),
         )
         .unwrap();
-        let (m, c, k, alpha, beta, gamma, delta) = (2.0, 10.0, 5e4, 5e4, 1e3, 0.8, -1.1);
+        let (m, c, k, alpha, beta, gamma, delta): (f64, f64, f64, f64, f64, f64, f64) =
+            (2.0, 10.0, 5e4, 5e4, 1e3, 0.8, -1.1);
         let f_ref = 100.0;
         let a = f_ref / (k + alpha);
         let osc = Oscillator {
