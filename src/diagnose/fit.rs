@@ -9,6 +9,7 @@ use crate::optimizer::nelder_mead::NelderMead;
 use crate::optimizer::pso::PsoConfig;
 use crate::optimizer::{Optimizer, OptimizerConfig};
 use crate::physics::structure::{LinearFit, Structure};
+use rayon::prelude::*;
 use std::sync::Arc;
 
 /// The training cost of a structure's shape: `Σ e²/2` with the best linear coefficients.
@@ -43,6 +44,21 @@ impl Objective for StructureObjective {
     fn evaluate(&self, x: &[f64]) -> f64 {
         self.st.fit_linear(x, &self.u, &self.y).cost
     }
+
+    /// A swarm's simulations in parallel (each point on its own, so the values do not
+    /// depend on the thread count).
+    fn evaluate_batch(&self, points: &[f64], out: &mut [f64]) {
+        par_batch(self, points, out);
+    }
+}
+
+/// [`Objective::evaluate_batch`] over rayon's pool, point by point.
+fn par_batch(obj: &(impl Objective + Sync), points: &[f64], out: &mut [f64]) {
+    let d = obj.dim();
+    points
+        .par_chunks_exact(d)
+        .zip(out.par_iter_mut())
+        .for_each(|(p, o)| *o = obj.evaluate(p));
 }
 
 /// An objective restricted to some coordinates, the others held at `base`.
@@ -68,6 +84,10 @@ impl Objective for Restricted {
             full[i] = v;
         }
         self.inner.evaluate(&full)
+    }
+
+    fn evaluate_batch(&self, points: &[f64], out: &mut [f64]) {
+        par_batch(self, points, out);
     }
 }
 
@@ -142,6 +162,9 @@ pub struct Budget {
     pub polish: u64,
     /// Polish rounds (each restarts the simplex at a smaller step).
     pub rounds: usize,
+    /// The global stage fits only the first this many samples (0: all); the polish always
+    /// fits the whole record. Cheap exploration for an expensive model.
+    pub global_window: usize,
 }
 
 /// A fitted structure.
@@ -174,6 +197,16 @@ pub fn fit(
     seed: u64,
 ) -> Fitted {
     let obj = Arc::new(StructureObjective::new(st.clone(), u.clone(), y.clone()));
+    let w = budget.global_window;
+    let explore = if w > 0 && w < u.len().min(y.len()) {
+        Arc::new(StructureObjective::new(
+            st.clone(),
+            Arc::new(u[..w].to_vec()),
+            Arc::new(y[..w].to_vec()),
+        ))
+    } else {
+        obj.clone()
+    };
     let neutral: Vec<f64> = st.specs().iter().map(|s| s.neutral).collect();
     let mut best = start.map_or(neutral, <[f64]>::to_vec);
     let label = st.label();
@@ -187,7 +220,7 @@ pub fn fit(
         )
         .expect("valid bounds");
         let restricted: Arc<dyn Objective> = Arc::new(Restricted {
-            inner: obj.clone(),
+            inner: explore,
             free: free.clone(),
             base: best.clone(),
             bounds,

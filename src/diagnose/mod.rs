@@ -60,6 +60,9 @@ pub struct Options {
     /// Budgets of the baseline fit and of each candidate refit.
     pub baseline_budget: Budget,
     pub candidate_budget: Budget,
+    /// Budget of a candidate in a new placement (not nested: its oscillator and loop shape
+    /// are searched afresh, the global stage on the first samples only).
+    pub placement_budget: Budget,
     /// At most this many extensions are accepted.
     pub max_rounds: usize,
     /// How the input moves between samples (for the feedback placement's integrator).
@@ -85,12 +88,21 @@ impl Default for Options {
                 swarm: 30,
                 polish: 800,
                 rounds: 3,
+                global_window: 0,
             },
             candidate_budget: Budget {
                 global: 300,
                 swarm: 15,
                 polish: 700,
                 rounds: 2,
+                global_window: 0,
+            },
+            placement_budget: Budget {
+                global: 1500,
+                swarm: 30,
+                polish: 700,
+                rounds: 2,
+                global_window: 4096,
             },
             max_rounds: 4,
             hold: Hold::Zoh,
@@ -172,6 +184,11 @@ pub struct Diagnosis {
     pub final_model: ModelSummary,
     /// Structure left in the final residual that no candidate explains.
     pub unexplained: bool,
+    /// Half the training record's noise floor: residual structure smaller than this is
+    /// reported but not counted as unexplained.
+    pub resolution: f64,
+    /// The battery still finds structure in the final residual (whatever its size).
+    pub residual_structured: bool,
     /// Bootstrap scores of the battery under the fitted baseline, sorted.
     pub bootstrap_scores: Vec<f64>,
     /// How the input moves between samples (`--hold`).
@@ -372,6 +389,7 @@ fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> (Vec
                     swarm: 1,
                     polish: opts.candidate_budget.polish / 2,
                     rounds: 1,
+                    global_window: 0,
                 },
                 opts.seed ^ (0xb00 + b as u64),
             );
@@ -483,12 +501,10 @@ pub fn diagnose_with_tests(
         periodic: opts.validate_periodic,
     };
     let ctx = Context::from_training(&train.u, dt).with_hold(opts.hold);
+    let train_noise = residual::noise_floor(&train.y);
     let noise = {
-        let (a, b) = (
-            residual::noise_floor(&train.y),
-            residual::noise_floor(&validate.y),
-        );
-        (0.5 * (a * a + b * b)).sqrt()
+        let b = residual::noise_floor(&validate.y);
+        (0.5 * (train_noise * train_noise + b * b)).sqrt()
     };
     let plain = Structure::new(&[], fixed_n, ctx);
     let base_fit = fit::fit(
@@ -578,8 +594,7 @@ pub fn diagnose_with_tests(
                 let st = parent.extended(e).with_placement(placement);
                 let start = parent.embed(&current.fitted.theta, &st);
                 // A nested candidate searches its own parameters; a new placement is not
-                // nested, so its oscillator and loop shape are searched afresh, with the
-                // baseline's budget.
+                // nested, so its oscillator and loop shape are searched afresh.
                 let free: Vec<usize> = st
                     .specs()
                     .iter()
@@ -588,7 +603,7 @@ pub fn diagnose_with_tests(
                     .map(|(i, _)| i)
                     .collect();
                 let budget = if moved {
-                    opts.baseline_budget
+                    opts.placement_budget
                 } else {
                     opts.candidate_budget
                 };
@@ -668,7 +683,11 @@ pub fn diagnose_with_tests(
         })
         .collect();
     let threshold = boot.last().copied().unwrap_or(1.0).max(1.0);
-    let unexplained = current_summary.p_value <= 0.05 && current.score > threshold;
+    // Structure the battery finds below half the training noise cannot be resolved by a
+    // model fitted to the training data (it shows only on a cleaner validation record).
+    let resolution = 0.5 * train_noise;
+    let structured = current_summary.p_value <= 0.05 && current.score > threshold;
+    let unexplained = structured && current_summary.validate_rmse > resolution;
     let series = Series {
         t: [train.t.clone(), validate.t.clone()],
         u: [train.u.clone(), validate.u.clone()],
@@ -692,6 +711,8 @@ pub fn diagnose_with_tests(
         left_out,
         final_model: current_summary,
         unexplained,
+        resolution,
+        residual_structured: structured,
         bootstrap_scores: boot,
         hold: opts.hold.name().into(),
         tests: free_runs,

@@ -119,9 +119,15 @@ pub fn text(d: &Diagnosis) -> String {
         s,
         "{}",
         if d.unexplained {
-            "unexplained structure remains in the final residual (battery fails beyond every bootstrap refit)"
+            "unexplained structure remains in the final residual (battery fails beyond every bootstrap refit)".to_string()
+        } else if d.residual_structured {
+            format!(
+                "the battery still finds structure in the final residual, but at {}{u} RMS it is below the training data's resolution ({}{u}, half their noise floor): nothing a fit to them can explain",
+                f(d.final_model.validate_rmse),
+                f(d.resolution)
+            )
         } else {
-            "no structure left that the residual tests can tell from noise"
+            "no structure left that the residual tests can tell from noise".to_string()
         }
     );
     let _ = writeln!(s, "{} evaluations, {:.1} s", d.evaluations, d.wall_s);
