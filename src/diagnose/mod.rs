@@ -204,6 +204,21 @@ pub struct Diagnosis {
     pub series: Series,
 }
 
+impl Diagnosis {
+    /// The accepted effects in order, `dynamics(feedback)` when the hysteresis was placed
+    /// inside the mechanical feedback.
+    pub fn accepted_labels(&self) -> Vec<String> {
+        self.candidates
+            .iter()
+            .filter(|c| c.accepted)
+            .map(|c| match c.placement.as_deref() {
+                Some("feedback") => format!("{}(feedback)", c.name),
+                _ => c.name.clone(),
+            })
+            .collect()
+    }
+}
+
 /// A record the diagnosis never looks at, simulated from its input alone.
 #[derive(Clone, Debug)]
 pub struct TestSet {

@@ -194,7 +194,7 @@ pub struct Row {
     pub truth: String,
     pub size: String,
     pub seed: u64,
-    /// Accepted effects, in order.
+    /// Accepted effects, in order (`dynamics(feedback)` for the feedback placement).
     pub found: Vec<String>,
     /// Exactly the concealed effect (nothing, for a null case).
     pub exact: bool,
@@ -241,7 +241,10 @@ pub fn run(
             Ok((k.clone(), *s, diagnose(&t, &v, &o)?))
         })
         .collect();
+    // The twin's mode sits after the hysteresis: the feedback placement is a wrong answer.
     let mut labels: Vec<String> = Effect::ALL.iter().map(|e| e.name().to_string()).collect();
+    let at = labels.iter().position(|l| l == "dynamics").expect("dynamics") + 1;
+    labels.insert(at, "dynamics(feedback)".into());
     labels.push("none".into());
     let idx = |name: &str| labels.iter().position(|l| l == name).expect("label");
     let mut confusion = vec![vec![0; labels.len()]; labels.len()];
@@ -251,9 +254,10 @@ pub fn run(
     let noise = TwinConfig::default().noise.sigma;
     for r in results {
         let (k, seed, d) = r?;
+        let found = d.accepted_labels();
         let exact = match k.truth {
-            None => d.left_out.is_empty(),
-            Some(e) => d.left_out == [e.name()],
+            None => found.is_empty(),
+            Some(e) => found == [e.name()],
         };
         match k.truth {
             None => {
@@ -265,13 +269,13 @@ pub fn run(
                 hit += usize::from(exact);
             }
         }
-        let first = d.left_out.first().map_or("none", String::as_str);
+        let first = found.first().map_or("none", String::as_str);
         confusion[idx(k.name())][idx(first)] += 1;
         rows.push(Row {
             truth: k.name().into(),
             size: k.describe(),
             seed,
-            found: d.left_out.clone(),
+            found,
             exact,
             baseline_ratio: d.baseline.validate_rmse / noise,
             final_ratio: d.final_model.validate_rmse / noise,
