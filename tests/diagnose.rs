@@ -109,6 +109,10 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
             "bouc-wen-n1",
             "--out",
             "diag",
+            "--test",
+            "validate.csv",
+            "--test-periodic",
+            "train.csv",
         ],
         dir.path(),
     );
@@ -141,6 +145,32 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
     for key in ["train_rmse", "validate_rmse", "params"] {
         assert!(json["baseline"].get(key).is_some() && json["final"].get(key).is_some());
     }
+    // Dynamics is tried in both placements in the first round.
+    let placements: Vec<&str> = json["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| c["name"] == "dynamics" && c["round"] == 1)
+        .map(|c| c["placement"].as_str().unwrap())
+        .collect();
+    assert_eq!(placements, ["after-hysteresis", "feedback"]);
+    // Test records: free run from the input alone, both models, finite; on the validation
+    // record (from rest, its initial state not fitted) close to the diagnosis's own figure.
+    let tests = json["tests"].as_array().unwrap();
+    assert_eq!(tests.len(), 2);
+    assert!(
+        tests[1]["protocol"]
+            .as_str()
+            .unwrap()
+            .starts_with("periodic")
+    );
+    let free = tests[0]["final_rmse"].as_f64().unwrap();
+    let fitted = json["final"]["validate_rmse"].as_f64().unwrap();
+    assert!(
+        free >= 0.9 * fitted && free < 3.0 * fitted,
+        "{free} vs {fitted}"
+    );
+    assert!(tests[1]["baseline_rmse"].as_f64().unwrap().is_finite());
     for c in json["candidates"].as_array().unwrap() {
         for key in [
             "name",
@@ -195,6 +225,17 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
                 "preisach",
             ],
             "--model preisach",
+        ),
+        (
+            vec![
+                "--train",
+                "train.csv",
+                "--validate",
+                "validate.csv",
+                "--hold",
+                "staircase",
+            ],
+            "--hold staircase",
         ),
         (
             vec![

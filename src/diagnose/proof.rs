@@ -243,7 +243,11 @@ pub fn run(
         .collect();
     // The twin's mode sits after the hysteresis: the feedback placement is a wrong answer.
     let mut labels: Vec<String> = Effect::ALL.iter().map(|e| e.name().to_string()).collect();
-    let at = labels.iter().position(|l| l == "dynamics").expect("dynamics") + 1;
+    let at = labels
+        .iter()
+        .position(|l| l == "dynamics")
+        .expect("dynamics")
+        + 1;
     labels.insert(at, "dynamics(feedback)".into());
     labels.push("none".into());
     let idx = |name: &str| labels.iter().position(|l| l == name).expect("label");

@@ -252,8 +252,7 @@ impl Oscillator {
                     v + 0.5 * h * k2v,
                     g + 0.5 * h * k2g,
                 );
-                let (k4y, k4v, k4g) =
-                    self.rate(power, x_b, y + h * k3y, v + h * k3v, g + h * k3g);
+                let (k4y, k4v, k4g) = self.rate(power, x_b, y + h * k3y, v + h * k3v, g + h * k3g);
                 y += h / 6.0 * (k1y + 2.0 * k2y + 2.0 * k3y + k4y);
                 v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
                 g += h / 6.0 * (k1g + 2.0 * k2g + 2.0 * k3g + k4g);
