@@ -53,7 +53,7 @@ impl Objective for StructureObjective {
 }
 
 /// [`Objective::evaluate_batch`] over rayon's pool, point by point.
-fn par_batch(obj: &(impl Objective + Sync), points: &[f64], out: &mut [f64]) {
+fn par_batch(obj: &impl Objective, points: &[f64], out: &mut [f64]) {
     let d = obj.dim();
     points
         .par_chunks_exact(d)
