@@ -88,7 +88,12 @@ pub fn text(d: &Diagnosis) -> String {
     if d.left_out.is_empty() {
         let _ = writeln!(
             s,
-            "left out: nothing; the plain model is enough for these data"
+            "{}",
+            if d.unexplained {
+                "left out: no candidate is accepted, yet the plain model is not enough (below)"
+            } else {
+                "left out: nothing; the plain model is enough for these data"
+            }
         );
     } else {
         let _ = writeln!(s, "left out: {}", d.left_out.join(", "));
