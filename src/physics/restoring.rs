@@ -208,7 +208,14 @@ impl Oscillator {
             self.respond_with(|a| a, fine, dt, x0, g0)
         } else {
             let n = self.n;
-            self.respond_with(|a: f64| a.powf(n), fine, dt, x0, g0)
+            // Branch-free 2^(n log2 a) (relative error < 1e-14), far cheaper than `powf`.
+            self.respond_with(
+                |a: f64| super::fastmath::pow(a.max(1e-300), n),
+                fine,
+                dt,
+                x0,
+                g0,
+            )
         }
     }
 

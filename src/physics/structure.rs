@@ -706,7 +706,9 @@ impl Structure {
         if self.has(Effect::Creep) {
             for tau in [sh.creep_tau, sh.creep_tau2] {
                 let r = (-dt / tau).exp();
-                let col: Vec<f64> = (0..n).map(|k| r.powi(k as i32)).collect();
+                let col: Vec<f64> = std::iter::successors(Some(1.0), |p| Some(p * r))
+                    .take(n)
+                    .collect();
                 cols.push(if col.iter().all(|x| x.is_finite()) {
                     col
                 } else {
