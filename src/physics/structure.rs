@@ -241,6 +241,52 @@ struct Shape {
     fb_c: f64,
 }
 
+impl Shape {
+    /// Every parameter finite (unused ones hold finite defaults).
+    fn is_finite(&self) -> bool {
+        [
+            self.s,
+            self.w,
+            self.n,
+            self.g0,
+            self.delay,
+            self.lag,
+            self.sat_c,
+            self.q,
+            self.rho,
+            self.tau_r,
+            self.creep_g,
+            self.creep_tau,
+            self.creep_g2,
+            self.creep_tau2,
+            self.mode_p,
+            self.zeta,
+            self.fb_hz,
+            self.fb_zeta,
+            self.fb_r,
+            self.fb_b,
+            self.fb_c,
+        ]
+        .iter()
+        .all(|x| x.is_finite())
+    }
+
+    /// The memoryless part of the chain: saturation, then asymmetry (`u_ref` the training
+    /// peak).
+    fn drive(&self, u_ref: f64) -> impl Fn(f64) -> f64 {
+        let limit = if self.sat_c > 0.0 {
+            u_ref / self.sat_c
+        } else {
+            f64::INFINITY
+        };
+        let q = self.q;
+        move |x: f64| {
+            let x = x.clamp(-limit, limit);
+            x + q * x * x / u_ref
+        }
+    }
+}
+
 impl Structure {
     /// The plain model plus `effects` (any order, duplicates ignored); `fixed_n` pins the
     /// Bouc-Wen exponent (e.g. 1) instead of fitting it.
@@ -551,35 +597,9 @@ impl Structure {
         if n == 0 {
             return (vec![cv, vec![], cg], status);
         }
-        let finite_shape = [
-            sh.s,
-            sh.w,
-            sh.n,
-            sh.delay,
-            sh.lag,
-            sh.sat_c,
-            sh.q,
-            sh.rho,
-            sh.tau_r,
-            sh.creep_g,
-            sh.creep_tau,
-            sh.creep_g2,
-            sh.creep_tau2,
-            sh.mode_p,
-            sh.zeta,
-        ]
-        .iter()
-        .all(|x| x.is_finite());
+        let finite_shape = sh.is_finite();
         let kernel = self.kernel(&sh);
-        let limit = if sh.sat_c > 0.0 {
-            ctx.u_ref / sh.sat_c
-        } else {
-            f64::INFINITY
-        };
-        let drive = |x: f64| {
-            let x = x.clamp(-limit, limit);
-            x + sh.q * x * x / ctx.u_ref
-        };
+        let drive = sh.drive(ctx.u_ref);
         let mut delay = (self.has(Effect::Delay) && sh.delay > 0.0)
             .then(|| Delay::new(sh.delay.clamp(0.0, 1e4) * dt, dt));
         let mut lag =
@@ -733,25 +753,7 @@ impl Structure {
             c: sh.fb_c,
             n: sh.n,
         };
-        let finite = [
-            sh.n,
-            sh.g0,
-            sh.delay,
-            sh.lag,
-            sh.sat_c,
-            sh.q,
-            sh.creep_g,
-            sh.creep_tau,
-            sh.creep_g2,
-            sh.creep_tau2,
-            sh.fb_hz,
-            sh.fb_zeta,
-            sh.fb_r,
-            sh.fb_b,
-            sh.fb_c,
-        ]
-        .iter()
-        .all(|x| x.is_finite());
+        let finite = sh.is_finite();
         let tail = self.tail_columns(sh, n);
         let failed = |at: usize| {
             let mut cols = vec![vec![0.0; n], vec![1.0; n]];
@@ -785,22 +787,16 @@ impl Structure {
                 };
             }
         }
-        let limit = if sh.sat_c > 0.0 {
-            ctx.u_ref / sh.sat_c
-        } else {
-            f64::INFINITY
-        };
-        let drive = |x: f64| {
-            let x = x.clamp(-limit, limit);
-            (x + sh.q * x * x / ctx.u_ref) / ctx.u_ref
-        };
+        let clip = sh.drive(ctx.u_ref);
+        let drive = |x: f64| clip(x) / ctx.u_ref;
         fine.map(drive);
         let y = match osc.respond(&fine, dt, drive(u[0]), sh.g0.clamp(-1.0, 1.0)) {
             Ok(y) => y,
             Err(at) => return failed(at),
         };
-        let mut out = y.clone();
+        let mut out = y;
         if self.has(Effect::Creep) {
+            let y = out.clone();
             for (g, tau) in [(sh.creep_g, sh.creep_tau), (sh.creep_g2, sh.creep_tau2)] {
                 if g != 0.0 {
                     let mut lp = LowPass::new(tau, dt);
