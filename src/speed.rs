@@ -206,8 +206,8 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
             bouc_wen_fast::costs(&pop, &explicit, &mut out)
         }),
         threads_s: time(cfg.repeats, || {
-            pop.par_chunks(lanes)
-                .zip(out.par_chunks_mut(lanes))
+            pop.par_chunks(bouc_wen_fast::EXPLICIT_LANES)
+                .zip(out.par_chunks_mut(bouc_wen_fast::EXPLICIT_LANES))
                 .for_each(|(p, o)| bouc_wen_fast::costs(p, &explicit, o))
         }),
         threads,
