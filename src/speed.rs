@@ -161,6 +161,24 @@ pub struct BenchReport {
     pub msga_threads_speedup: f64,
     pub accelerated: bool,
     pub threads: usize,
+    /// Samples per record and individuals per population of the run.
+    pub samples: usize,
+    pub population: usize,
+    /// The explicit recurrence's record and a few costs on it, so that a port elsewhere
+    /// (`scripts/compare_peers.py`) can check it computes the same recurrence.
+    pub explicit_check: ExplicitCheck,
+}
+
+/// A record and the explicit recurrence's costs of a few parameter sets on it.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ExplicitCheck {
+    pub u: Vec<f64>,
+    pub y: Vec<f64>,
+    /// `[d_e, alpha, beta, gamma, n, d0]` per parameter set.
+    pub params: Vec<[f64; 6]>,
+    /// [`bouc_wen_fast::cost_reference`] (`powf`) and the batched path.
+    pub reference: Vec<f64>,
+    pub batched: Vec<f64>,
 }
 
 /// Runs every measurement.
@@ -193,6 +211,24 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         threads,
     });
     let explicit = FastInput::explicit(&u, &y);
+    let explicit_check = {
+        let ps = &pop[..pop.len().min(4)];
+        let mut batched = vec![0.0; ps.len()];
+        bouc_wen_fast::costs(ps, &explicit, &mut batched);
+        ExplicitCheck {
+            u: u.clone(),
+            y: y.clone(),
+            params: ps
+                .iter()
+                .map(|p| [p.d_e, p.alpha, p.beta, p.gamma, p.n, p.d0])
+                .collect(),
+            reference: ps
+                .iter()
+                .map(|p| bouc_wen_fast::cost_reference(p, &explicit))
+                .collect(),
+            batched,
+        }
+    };
     rows.push(Row {
         name: "bouc-wen (explicit recurrence)".into(),
         unit: "M samples/s",
@@ -296,6 +332,9 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         msga_threads_speedup: msga_threads(cfg),
         accelerated: bouc_wen_fast::accelerated(),
         threads,
+        samples: cfg.samples,
+        population: cfg.population,
+        explicit_check,
     }
 }
 
@@ -364,6 +403,36 @@ fn msga_threads(cfg: &BenchConfig) -> f64 {
 }
 
 impl BenchReport {
+    /// The measurement as JSON (`optbench bench --json FILE`): rates per core in each row's
+    /// unit, the ratios, and the explicit recurrence's check data.
+    pub fn to_json(&self) -> serde_json::Value {
+        let rows: Vec<serde_json::Value> = self
+            .rows
+            .iter()
+            .map(|r| {
+                serde_json::json!({
+                    "name": r.name,
+                    "unit": r.unit,
+                    "scalar": r.rate(r.scalar_s, 1),
+                    "batched": r.rate(r.batched_s, 1),
+                    "threads": r.rate(r.threads_s, r.threads),
+                    "batched_over_scalar": r.speedup(),
+                    "threads_over_batched": r.batched_s / r.threads_s,
+                })
+            })
+            .collect();
+        serde_json::json!({
+            "threads": self.threads,
+            "accelerated": self.accelerated,
+            "samples": self.samples,
+            "population": self.population,
+            "rows": rows,
+            "harness_overhead": self.harness_overhead,
+            "msga_threads_speedup": self.msga_threads_speedup,
+            "explicit_check": self.explicit_check,
+        })
+    }
+
     /// The table as printed by `optbench bench`.
     pub fn render(&self) -> String {
         let mut s = String::new();
@@ -432,5 +501,12 @@ mod tests {
         let last = text.lines().last().unwrap();
         assert!(last.starts_with("bouc-wen batched/scalar = "), "{last}");
         assert!(last.ends_with('x'));
+        let json = r.to_json();
+        assert_eq!(json["rows"].as_array().unwrap().len(), 7);
+        let check = &r.explicit_check;
+        assert_eq!(check.u.len(), 200);
+        for (a, b) in check.reference.iter().zip(&check.batched) {
+            assert!(((a - b) / a).abs() < 1e-6, "{a} vs {b}");
+        }
     }
 }
