@@ -2,8 +2,9 @@
 //! run alongside, so that a user sees what this machine gives before planning a suite.
 //!
 //! Every figure is the median of several timed repetitions (wall clock, after one warm-up).
-//! Per-core rates divide by the threads used. The fixtures are shared with the criterion
-//! benches (`benches/models.rs`), which give the detailed view.
+//! The all-thread figures run the whole population on every thread at once (per core: each
+//! thread's rate). The fixtures are shared with the criterion benches (`benches/models.rs`),
+//! which give the detailed view.
 
 use crate::harness::{Evaluator, TrialSeed, TrialSpec, run_trial};
 use crate::objective::fit::BoucWenFit;
@@ -17,7 +18,6 @@ use crate::physics::rbf_fast::RbfBatch;
 use crate::recording::Recording;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -126,6 +126,18 @@ fn time(repeats: usize, mut f: impl FnMut()) -> f64 {
     t[t.len() / 2]
 }
 
+/// Runs `f` once on every thread of the pool at the same time, each with its own output of
+/// `n` values: all cores busy with the whole population each, as when a suite runs trials
+/// in parallel (splitting one population would measure load balance, not the cores: five
+/// 40-lane blocks on two threads can gain at most 5/3).
+fn everywhere(n: usize, f: impl Fn(&mut [f64]) + Sync) {
+    rayon::broadcast(|_| {
+        let mut out = vec![0.0; n];
+        f(&mut out);
+        std::hint::black_box(&out);
+    });
+}
+
 /// One line of the table: a rate for the baseline, the batched path and the batched path on
 /// every thread.
 #[derive(Clone, Debug)]
@@ -136,6 +148,7 @@ pub struct Row {
     pub work: f64,
     pub scalar_s: f64,
     pub batched_s: f64,
+    /// Time for every thread to run the batched path once, concurrently ([`everywhere`]).
     pub threads_s: f64,
     pub threads: usize,
 }
@@ -148,6 +161,16 @@ impl Row {
     /// Batched over scalar.
     pub fn speedup(&self) -> f64 {
         self.scalar_s / self.batched_s
+    }
+
+    /// The batched path's rate per core with every core busy.
+    pub fn threads_rate(&self) -> f64 {
+        self.rate(self.threads_s, 1)
+    }
+
+    /// Whole machine with every thread against one thread.
+    pub fn threads_speedup(&self) -> f64 {
+        self.threads as f64 * self.batched_s / self.threads_s
     }
 }
 
@@ -192,7 +215,6 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
     let pop = fixtures::bouc_wen_population(cfg.population, 7);
     let input = FastInput::new(&u, &y, 1);
     let mut out = vec![0.0; pop.len()];
-    let lanes = bouc_wen_fast::LANES;
     rows.push(Row {
         name: "bouc-wen".into(),
         unit: "M samples/s",
@@ -204,9 +226,7 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         }),
         batched_s: time(cfg.repeats, || bouc_wen_fast::costs(&pop, &input, &mut out)),
         threads_s: time(cfg.repeats, || {
-            pop.par_chunks(lanes)
-                .zip(out.par_chunks_mut(lanes))
-                .for_each(|(p, o)| bouc_wen_fast::costs(p, &input, o))
+            everywhere(pop.len(), |o| bouc_wen_fast::costs(&pop, &input, o))
         }),
         threads,
     });
@@ -242,9 +262,7 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
             bouc_wen_fast::costs(&pop, &explicit, &mut out)
         }),
         threads_s: time(cfg.repeats, || {
-            pop.par_chunks(bouc_wen_fast::EXPLICIT_LANES)
-                .zip(out.par_chunks_mut(bouc_wen_fast::EXPLICIT_LANES))
-                .for_each(|(p, o)| bouc_wen_fast::costs(p, &explicit, o))
+            everywhere(pop.len(), |o| bouc_wen_fast::costs(&pop, &explicit, o))
         }),
         threads,
     });
@@ -260,9 +278,11 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         scalar_s: accurate_s,
         batched_s: accurate_s,
         threads_s: time(cfg.repeats.min(3), || {
-            pop.par_iter()
-                .zip(out.par_iter_mut())
-                .for_each(|(p, o)| *o = bouc_wen::cost(p, &u, &y))
+            everywhere(pop.len(), |o| {
+                for (p, o) in pop.iter().zip(o.iter_mut()) {
+                    *o = bouc_wen::cost(p, &u, &y);
+                }
+            })
         }),
         threads,
     });
@@ -277,7 +297,6 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         (Mode::OneStepAhead, "one-step"),
         (Mode::FreeRun, "free-run"),
     ] {
-        let rblock = d * crate::physics::rbf_fast::LANES;
         rows.push(Row {
             name: format!("rbf 3-7-1 {tag}"),
             unit: "M samples/s",
@@ -292,9 +311,7 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
             }),
             batched_s: time(cfg.repeats, || batch.costs(&rpop, mode, &mut out)),
             threads_s: time(cfg.repeats, || {
-                rpop.par_chunks(rblock)
-                    .zip(out.par_chunks_mut(crate::physics::rbf_fast::LANES))
-                    .for_each(|(p, o)| batch.costs(p, mode, o))
+                everywhere(cfg.population, |o| batch.costs(&rpop, mode, o))
             }),
             threads,
         });
@@ -318,9 +335,7 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
             }),
             batched_s: time(cfg.repeats, || f.evaluate_batch(&xs, &mut vals)),
             threads_s: time(cfg.repeats, || {
-                xs.par_chunks(dim * 200)
-                    .zip(vals.par_chunks_mut(200))
-                    .for_each(|(x, v)| f.evaluate_batch(x, v))
+                everywhere(points, |v| f.evaluate_batch(&xs, v))
             }),
             threads,
         });
@@ -415,9 +430,9 @@ impl BenchReport {
                     "unit": r.unit,
                     "scalar": r.rate(r.scalar_s, 1),
                     "batched": r.rate(r.batched_s, 1),
-                    "threads": r.rate(r.threads_s, r.threads),
+                    "threads": r.threads_rate(),
                     "batched_over_scalar": r.speedup(),
-                    "threads_over_batched": r.batched_s / r.threads_s,
+                    "threads_over_batched": r.threads_speedup(),
                 })
             })
             .collect();
@@ -456,13 +471,13 @@ impl BenchReport {
                 r.unit,
                 r.rate(r.scalar_s, 1),
                 r.rate(r.batched_s, 1),
-                r.rate(r.threads_s, r.threads),
+                r.threads_rate(),
                 r.speedup(),
-                r.batched_s / r.threads_s,
+                r.threads_speedup(),
             ));
         }
         s.push_str(
-            "\nscalar: one individual at a time (std exp/powf); batched: the objective's population path;\nthreads: batched on every thread, per core; b/s = batched/scalar; t/b = threads/batched (whole machine)\n\n",
+            "\nscalar: one individual at a time (std exp/powf); batched: the objective's population path;\nthreads: every thread running the batched path at once, per core; b/s = batched/scalar;\nt/b = all threads/one thread (whole machine)\n\n",
         );
         s.push_str(&format!(
             "harness overhead on griewank-30 (Evaluator vs bare loop): {:+.1} % (goal <= 5 %)\n",
