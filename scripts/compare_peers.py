@@ -22,9 +22,10 @@ Problems and methods (every method gets exactly the same number of evaluations):
 3. Evaluation speed of the seed's Bouc-Wen recurrence (optbench's `scheme = "explicit"`,
    src/physics/bouc_wen_fast.rs: one clamped Euler step per sample, one |h|^n) over the
    record and population of `optbench bench` (200 individuals x 10,000 samples): a numpy
-   port as fast as numpy allows (vectorised over the population, a loop over time,
-   preallocated arrays, in-place ufuncs with `out=`, the instability check as a running
-   maximum with a re-run of the rare lanes that exceed it) against optbench's batched path
+   port as fast as numpy allows (vectorised over the population, a loop over time doing
+   only the recurrence with preallocated arrays and in-place ufuncs with `out=`, then the
+   cost and the instability check vectorised over the stored states, with a re-run of the
+   rare lanes that exceed the bound) against optbench's batched path
    on one core, read from `optbench bench --json` (run here, or given with --bench-json).
    The port is first checked against optbench's costs on the same record.
 
@@ -177,11 +178,15 @@ def explicit_costs(P, u, y):
     sign = np.where(du < 0, -1.0, 1.0)
     ell = np.abs(du)
     ell[0] = 0.0
-    h, j, peak = np.zeros(k), np.zeros(k), np.zeros(k)
-    g, a, c0, lo, hi, e = (np.empty(k) for _ in range(6))
+    # The states of every sample are kept (T x k, preallocated), so that the cost and the
+    # instability check run vectorised over time after the loop: the loop does the
+    # recurrence only.
+    H = np.zeros((len(u), k))
+    g, a, c0, lo, hi = (np.empty(k) for _ in range(5))
     pos = np.empty(k, dtype=bool)
+    h = H[0]
     with np.errstate(all="ignore"):
-        for s, l, uk, yk in zip(sign.tolist(), ell.tolist(), u.tolist(), y.tolist()):
+        for t, (s, l) in enumerate(zip(sign.tolist(), ell.tolist())):
             if l > 0.0:
                 np.multiply(h, s, out=g)
                 np.abs(g, out=a)
@@ -197,15 +202,13 @@ def explicit_costs(P, u, y):
                 np.minimum(g, eq_lo, out=lo)
                 np.maximum(g, eq_hi, out=hi)
                 np.clip(a, lo, hi, out=a)  # the monotone path to the equilibrium
-                np.multiply(a, s, out=h)
-            np.multiply(d_e, uk, out=e)
-            np.add(e, d0, out=e)
-            np.subtract(yk, e, out=e)
-            np.add(e, h, out=e)
-            np.multiply(e, e, out=e)
-            np.add(j, e, out=j)
-            np.abs(h, out=e)
-            np.maximum(peak, e, out=peak)  # NaN stays NaN
+                np.multiply(a, s, out=H[t])
+            elif t > 0:
+                H[t] = h
+            h = H[t]
+        E = (y[:, None] - (u[:, None] * d_e + d0)) + H
+        j = np.einsum("ij,ij->j", E, E)
+        peak = np.max(np.abs(H), axis=0)  # NaN stays NaN
     cap = min(1e12 * (1.0 + 0.5 * float(np.sum(y[np.isfinite(y * y)] ** 2))), sys.float_info.max / 4)
     j *= 0.5
     out = np.where(j <= 1e12, j, np.minimum(j, cap))
