@@ -34,7 +34,7 @@
 //!
 //! # Threads and determinism
 //! With `threads = true` each membrane runs on its own OS thread: the coordinator grants
-//! each membrane its evaluations one round ahead, the membrane evolves and evaluates on its
+//! each membrane its evaluations two rounds ahead, the membrane evolves and evaluates on its
 //! thread, reports back, and exchanges migrants with its neighbours directly over channels.
 //! Nothing is a barrier: a membrane that finishes a step early starts its next one at once
 //! (its grant is already there) and only waits if a neighbour has not yet finished the
@@ -306,14 +306,18 @@ impl Optimizer for Sequential {
     }
 }
 
+/// Rounds granted beyond the one being collected: membranes may drift this far apart
+/// (neighbours stay within a step of each other through the migrants' lag).
+const AHEAD: usize = 2;
+
 /// One OS thread per membrane; the coordinator only grants and commits evaluations.
 struct Threaded {
     commands: Vec<Sender<Grant>>,
     reports: Vec<Receiver<Evaluated>>,
     handles: Vec<JoinHandle<()>>,
     objects: usize,
-    /// Whether the current round's grants are already out (sent one round ahead).
-    primed: bool,
+    /// Rounds granted and not yet collected.
+    open: usize,
 }
 
 impl Threaded {
@@ -384,7 +388,7 @@ impl Threaded {
             reports,
             handles,
             objects,
-            primed: false,
+            open: 0,
         }
     }
 }
@@ -403,20 +407,22 @@ impl Optimizer for Threaded {
                 ev.commit(evaluated);
             }
         };
-        if !self.primed {
+        // Grants go out `AHEAD` rounds before their round is collected, so that a membrane
+        // done early starts its next steps at once instead of waiting for the slowest (the
+        // quotas depend on counts only, so the results do not change).
+        while self.open <= AHEAD {
             grant_round(ev);
+            self.open += 1;
         }
-        // The next round's grants go out before this round is collected, so that a
-        // membrane done early starts its next step at once instead of waiting for the
-        // slowest (the quotas depend on counts only, so the results do not change).
-        grant_round(ev);
-        self.primed = true;
         commit_round(ev);
+        self.open -= 1;
         if ev.done() {
-            // The round granted ahead comes after the end: committed, it counts nothing
-            // and releases its reservation.
-            commit_round(ev);
-            self.primed = false;
+            // The rounds granted ahead come after the end: committed, they count nothing
+            // and release their reservations.
+            while self.open > 0 {
+                commit_round(ev);
+                self.open -= 1;
+            }
         }
     }
 }
