@@ -55,6 +55,22 @@ fn bouc_wen_costs(c: &mut Criterion) {
                 .for_each(|(p, o)| bouc_wen_fast::costs(p, &input, o))
         })
     });
+    // The seed's explicit recurrence (one `|h|^n` per sample).
+    let explicit = FastInput::explicit(&u, &y);
+    g.bench_function("explicit-scalar-reference", |b| {
+        b.iter(|| {
+            for (p, o) in pop.iter().zip(out.iter_mut()) {
+                *o = bouc_wen_fast::cost_reference(p, &explicit);
+            }
+            black_box(&out);
+        })
+    });
+    g.bench_function("explicit-batched-portable", |b| {
+        b.iter(|| bouc_wen_fast::costs_portable(black_box(&pop), &explicit, &mut out))
+    });
+    g.bench_function("explicit-batched", |b| {
+        b.iter(|| bouc_wen_fast::costs(black_box(&pop), &explicit, &mut out))
+    });
     g.finish();
 }
 
@@ -108,6 +124,9 @@ fn print_ratios() {
         "fast-batched-portable",
         "fast-batched",
         "fast-batched-all-threads",
+        "explicit-scalar-reference",
+        "explicit-batched-portable",
+        "explicit-batched",
     ];
     let t: Vec<Option<f64>> = ids.iter().map(|id| mean_ns(group, id)).collect();
     println!("\nBouc-Wen cost, {POP} individuals x {N} samples (this run):");
@@ -130,6 +149,13 @@ fn print_ratios() {
             "  all {threads} threads / one thread       = {:.2}x ({:.1} M samples/s per core)",
             fast / all,
             samples / all * 1e3 / threads
+        );
+    }
+    if let (Some(reference), Some(port), Some(fast)) = (t[5], t[6], t[7]) {
+        println!(
+            "  explicit batched / its scalar reference = {:.1}x, / its portable copy = {:.1}x",
+            reference / fast,
+            port / fast
         );
     }
 }

@@ -19,6 +19,16 @@ Problems and methods (every method gets exactly the same number of evaluations):
    largest relative difference between the two costs at optbench's final points), the same
    instability bound and penalty, and the same cost cap.
 
+3. Evaluation speed of the seed's Bouc-Wen recurrence (optbench's `scheme = "explicit"`,
+   src/physics/bouc_wen_fast.rs: one clamped Euler step per sample, one |h|^n) over the
+   record and population of `optbench bench` (200 individuals x 10,000 samples): a numpy
+   port as fast as numpy allows (vectorised over the population, a loop over time doing
+   only the recurrence with preallocated arrays and in-place ufuncs with `out=`, then the
+   cost and the instability check vectorised over the stored states, with a re-run of the
+   rare lanes that exceed the bound) against optbench's batched path
+   on one core, read from `optbench bench --json` (run here, or given with --bench-json).
+   The port is first checked against optbench's costs on the same record.
+
 Times are wall-clock seconds per trial on one thread (optbench `--threads 1`; numpy may use
 its BLAS threads, which these element-wise loops hardly touch), medians over the trials.
 """
@@ -147,6 +157,125 @@ class BoucWenCost:
 # --- peers ------------------------------------------------------------------------------
 
 
+def explicit_costs(P, u, y):
+    """Costs J = sum e^2 / 2 of the explicit recurrence for the rows [d_e, alpha, beta, gamma,
+    n, d0] of P on (u, y): optbench's bouc_wen_fast::run_explicit, vectorised over P."""
+    P = np.asarray(P, dtype=float)
+    k = len(P)
+    d_e, alpha, beta, gamma, n, d0 = (np.ascontiguousarray(P[:, i]) for i in range(6))
+    c_pos, c_neg = beta + gamma, gamma - beta
+
+    def equilibrium(c):
+        with np.errstate(all="ignore"):
+            r = alpha / c
+            e = r ** (1.0 / n)
+        return np.where((r > 0) & np.isfinite(e), e, 1e300)
+
+    eq_lo, eq_hi = -equilibrium(c_neg), equilibrium(c_pos)
+    umax = float(np.max(np.abs(u)))
+    bound = 1e6 * (1.0 + np.abs(alpha)) * umax
+    du = np.diff(u, prepend=u[0])
+    sign = np.where(du < 0, -1.0, 1.0)
+    ell = np.abs(du)
+    ell[0] = 0.0
+    # The states of every sample are kept (T x k, preallocated), so that the cost and the
+    # instability check run vectorised over time after the loop: the loop does the
+    # recurrence only.
+    H = np.zeros((len(u), k))
+    g, a, c0, lo, hi = (np.empty(k) for _ in range(5))
+    pos = np.empty(k, dtype=bool)
+    h = H[0]
+    with np.errstate(all="ignore"):
+        for t, (s, l) in enumerate(zip(sign.tolist(), ell.tolist())):
+            if l > 0.0:
+                np.multiply(h, s, out=g)
+                np.abs(g, out=a)
+                np.fmax(a, TINY, out=a)
+                np.power(a, n, out=a)  # |g|^n
+                np.greater_equal(g, 0.0, out=pos)
+                np.copyto(c0, c_neg)
+                np.copyto(c0, c_pos, where=pos)
+                np.multiply(c0, a, out=a)
+                np.subtract(alpha, a, out=a)  # the rate
+                np.multiply(a, l, out=a)
+                np.add(a, g, out=a)  # the Euler step
+                np.minimum(g, eq_lo, out=lo)
+                np.maximum(g, eq_hi, out=hi)
+                np.clip(a, lo, hi, out=a)  # the monotone path to the equilibrium
+                np.multiply(a, s, out=H[t])
+            elif t > 0:
+                H[t] = h
+            h = H[t]
+        E = (y[:, None] - (u[:, None] * d_e + d0)) + H
+        j = np.einsum("ij,ij->j", E, E)
+        peak = np.max(np.abs(H), axis=0)  # NaN stays NaN
+    cap = min(1e12 * (1.0 + 0.5 * float(np.sum(y[np.isfinite(y * y)] ** 2))), sys.float_info.max / 4)
+    j *= 0.5
+    out = np.where(j <= 1e12, j, np.minimum(j, cap))
+    bad = np.flatnonzero(~(peak <= bound))
+    for i in bad:  # rare: find the first unstable sample of each such lane
+        hi_, n_ = 0.0, P[i, 4]
+        at = len(u)
+        for t in range(len(u)):
+            if ell[t] > 0.0:
+                gi = sign[t] * hi_
+                pn = max(abs(gi), TINY) ** n_ if abs(gi) > TINY else TINY ** n_
+                ci = c_pos[i] if gi >= 0 else c_neg[i]
+                gh = gi + ell[t] * (alpha[i] - ci * pn)
+                gh = min(max(gh, min(gi, eq_lo[i])), max(gi, eq_hi[i]))
+                hi_ = sign[t] * gh
+            if not abs(hi_) <= bound[i]:
+                at = t
+                break
+        out[i] = cap * (2.0 - at / len(u))
+    return out
+
+
+TINY = 1e-300
+
+
+def explicit_speed(binary, bench_json, work):
+    """numpy's M samples/s on optbench bench's record and population, and optbench's."""
+    if bench_json is None:
+        bench_json = os.path.join(work, "bench.json")
+        subprocess.run([binary, "bench", "--json", bench_json], check=True, stdout=subprocess.DEVNULL)
+    with open(bench_json) as f:
+        bench = json.load(f)
+    check = bench["explicit_check"]
+    u, y = np.array(check["u"]), np.array(check["y"])
+    mine = explicit_costs(check["params"], u, y)
+    ref = np.array(check["reference"])
+    agree = float(np.max(np.abs(mine - ref) / np.abs(ref)))
+    agree_batched = float(np.max(np.abs(mine - np.array(check["batched"])) / np.abs(ref)))
+    # A population like the benchmark's (the JSON holds only the check rows): each parameter
+    # within +-50 % of the first row's, n from 0.5 to 1.5; numpy's time per sample does not
+    # depend on the values (no lane blows up here, so no re-runs).
+    rng = np.random.default_rng(7)
+    truth = np.array(check["params"][0])
+    pop = np.abs(truth) * rng.uniform(0.5, 1.5, size=(bench["population"], 6))
+    pop[:, 4] = rng.uniform(0.5, 1.5, size=bench["population"])
+    pop[:, 5] = 0.0
+    times = []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        explicit_costs(pop, u, y)
+        times.append(time.perf_counter() - t0)
+    rate = bench["population"] * len(u) / min(times) / 1e6
+    row = next(r for r in bench["rows"] if r["name"] == "bouc-wen (explicit recurrence)")
+    return {
+        "numpy": rate,
+        "optbench": row["batched"],
+        "optbench_threads": row["threads"],
+        "agree_reference": agree,
+        "agree_batched": agree_batched,
+        "check": list(zip(mine.tolist(), ref.tolist())),
+        "threads": bench["threads"],
+        "accelerated": bench["accelerated"],
+        "population": bench["population"],
+        "samples": len(u),
+    }
+
+
 def run_pyswarms(f, lo, hi, particles, iters, seed):
     np.random.seed(seed)
     dim = len(lo)
@@ -250,6 +379,8 @@ def main():
     ap.add_argument("--binary", required=True)
     ap.add_argument("--trials", type=int, default=5)
     ap.add_argument("--work", default=None, help="folder for suites and results (default: temporary)")
+    ap.add_argument("--bench-json", default=None, help="an `optbench bench --json` file to use (default: run it)")
+    ap.add_argument("--speed-only", action="store_true", help="only part 3, the recurrence's speed")
     args = ap.parse_args()
     work = args.work or tempfile.mkdtemp(prefix="optbench-peers-")
     os.makedirs(work, exist_ok=True)
@@ -258,6 +389,9 @@ def main():
         f"{args.trials} trials per method; work folder {work}\n"
     )
     rows = []
+    if args.speed_only:
+        print_speed(explicit_speed(args.binary, args.bench_json, work))
+        return
 
     # 1. Griewank 30-D.
     lo, hi = np.full(30, -600.0), np.full(30, 600.0)
@@ -324,6 +458,26 @@ def main():
         f"largest relative difference {rel:.2e} ({n_ones} of them at n = 1 exactly, the closed form; "
         f"the others RK4 with {cost.m} equal sub-steps against optbench's graded steps)"
     )
+    print()
+    print_speed(explicit_speed(args.binary, args.bench_json, work))
+
+
+def print_speed(sp):
+    print(
+        f"The seed's Bouc-Wen recurrence (optbench scheme = \"explicit\"), "
+        f"{sp['population']} individuals x {sp['samples']} samples:"
+    )
+    for mine, ref in sp["check"]:
+        print(f"  cost check: numpy {mine!r}  optbench reference {ref!r}")
+    print(
+        f"  numpy port vs optbench: largest relative difference {sp['agree_reference']:.1e} against its "
+        f"powf reference path, {sp['agree_batched']:.1e} against its batched path"
+    )
+    path = "AVX2+FMA" if sp["accelerated"] else "portable"
+    print(f"  numpy, one thread:                {sp['numpy']:8.1f} M samples/s")
+    print(f"  optbench batched ({path}), per core: {sp['optbench']:8.1f} M samples/s "
+          f"({sp['optbench_threads']:.1f} per core on {sp['threads']} threads)")
+    print(f"optbench / numpy = {sp['optbench'] / sp['numpy']:.1f}x")
 
 
 if __name__ == "__main__":

@@ -50,6 +50,9 @@ pub struct BenchArgs {
     /// Threads for the all-thread figures (default: one per core).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub threads: Option<u32>,
+    /// Also write the figures as JSON to this file (read by scripts/compare-peers).
+    #[arg(long)]
+    pub json: Option<std::path::PathBuf>,
 }
 
 #[derive(clap::Args, Debug)]
@@ -309,6 +312,14 @@ fn dispatch(cli: Cli) -> Result<()> {
                 None => crate::speed::run(&cfg),
             };
             print!("{}", report.render());
+            if let Some(path) = &a.json {
+                let text = serde_json::to_string_pretty(&report.to_json())
+                    .map_err(|e| crate::Error::Input(format!("bench JSON: {e}")))?;
+                std::fs::write(path, text).map_err(|source| crate::Error::Io {
+                    context: path.display().to_string(),
+                    source,
+                })?;
+            }
             Ok(())
         }
     }

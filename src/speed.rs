@@ -2,8 +2,9 @@
 //! run alongside, so that a user sees what this machine gives before planning a suite.
 //!
 //! Every figure is the median of several timed repetitions (wall clock, after one warm-up).
-//! Per-core rates divide by the threads used. The fixtures are shared with the criterion
-//! benches (`benches/models.rs`), which give the detailed view.
+//! The all-thread figures run the whole population on every thread at once (per core: each
+//! thread's rate). The fixtures are shared with the criterion benches (`benches/models.rs`),
+//! which give the detailed view.
 
 use crate::harness::{Evaluator, TrialSeed, TrialSpec, run_trial};
 use crate::objective::fit::BoucWenFit;
@@ -17,7 +18,6 @@ use crate::physics::rbf_fast::RbfBatch;
 use crate::recording::Recording;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -126,6 +126,18 @@ fn time(repeats: usize, mut f: impl FnMut()) -> f64 {
     t[t.len() / 2]
 }
 
+/// Runs `f` once on every thread of the pool at the same time, each with its own output of
+/// `n` values: all cores busy with the whole population each, as when a suite runs trials
+/// in parallel (splitting one population would measure load balance, not the cores: five
+/// 40-lane blocks on two threads can gain at most 5/3).
+fn everywhere(n: usize, f: impl Fn(&mut [f64]) + Sync) {
+    rayon::broadcast(|_| {
+        let mut out = vec![0.0; n];
+        f(&mut out);
+        std::hint::black_box(&out);
+    });
+}
+
 /// One line of the table: a rate for the baseline, the batched path and the batched path on
 /// every thread.
 #[derive(Clone, Debug)]
@@ -136,6 +148,7 @@ pub struct Row {
     pub work: f64,
     pub scalar_s: f64,
     pub batched_s: f64,
+    /// Time for every thread to run the batched path once, concurrently ([`everywhere`]).
     pub threads_s: f64,
     pub threads: usize,
 }
@@ -149,6 +162,16 @@ impl Row {
     pub fn speedup(&self) -> f64 {
         self.scalar_s / self.batched_s
     }
+
+    /// The batched path's rate per core with every core busy.
+    pub fn threads_rate(&self) -> f64 {
+        self.rate(self.threads_s, 1)
+    }
+
+    /// Whole machine with every thread against one thread.
+    pub fn threads_speedup(&self) -> f64 {
+        self.threads as f64 * self.batched_s / self.threads_s
+    }
 }
 
 /// The whole measurement.
@@ -161,6 +184,24 @@ pub struct BenchReport {
     pub msga_threads_speedup: f64,
     pub accelerated: bool,
     pub threads: usize,
+    /// Samples per record and individuals per population of the run.
+    pub samples: usize,
+    pub population: usize,
+    /// The explicit recurrence's record and a few costs on it, so that a port elsewhere
+    /// (`scripts/compare_peers.py`) can check it computes the same recurrence.
+    pub explicit_check: ExplicitCheck,
+}
+
+/// A record and the explicit recurrence's costs of a few parameter sets on it.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ExplicitCheck {
+    pub u: Vec<f64>,
+    pub y: Vec<f64>,
+    /// `[d_e, alpha, beta, gamma, n, d0]` per parameter set.
+    pub params: Vec<[f64; 6]>,
+    /// [`bouc_wen_fast::cost_reference`] (`powf`) and the batched path.
+    pub reference: Vec<f64>,
+    pub batched: Vec<f64>,
 }
 
 /// Runs every measurement.
@@ -174,7 +215,6 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
     let pop = fixtures::bouc_wen_population(cfg.population, 7);
     let input = FastInput::new(&u, &y, 1);
     let mut out = vec![0.0; pop.len()];
-    let lanes = bouc_wen_fast::LANES;
     rows.push(Row {
         name: "bouc-wen".into(),
         unit: "M samples/s",
@@ -186,13 +226,29 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         }),
         batched_s: time(cfg.repeats, || bouc_wen_fast::costs(&pop, &input, &mut out)),
         threads_s: time(cfg.repeats, || {
-            pop.par_chunks(lanes)
-                .zip(out.par_chunks_mut(lanes))
-                .for_each(|(p, o)| bouc_wen_fast::costs(p, &input, o))
+            everywhere(pop.len(), |o| bouc_wen_fast::costs(&pop, &input, o))
         }),
         threads,
     });
     let explicit = FastInput::explicit(&u, &y);
+    let explicit_check = {
+        let ps = &pop[..pop.len().min(4)];
+        let mut batched = vec![0.0; ps.len()];
+        bouc_wen_fast::costs(ps, &explicit, &mut batched);
+        ExplicitCheck {
+            u: u.clone(),
+            y: y.clone(),
+            params: ps
+                .iter()
+                .map(|p| [p.d_e, p.alpha, p.beta, p.gamma, p.n, p.d0])
+                .collect(),
+            reference: ps
+                .iter()
+                .map(|p| bouc_wen_fast::cost_reference(p, &explicit))
+                .collect(),
+            batched,
+        }
+    };
     rows.push(Row {
         name: "bouc-wen (explicit recurrence)".into(),
         unit: "M samples/s",
@@ -206,9 +262,7 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
             bouc_wen_fast::costs(&pop, &explicit, &mut out)
         }),
         threads_s: time(cfg.repeats, || {
-            pop.par_chunks(lanes)
-                .zip(out.par_chunks_mut(lanes))
-                .for_each(|(p, o)| bouc_wen_fast::costs(p, &explicit, o))
+            everywhere(pop.len(), |o| bouc_wen_fast::costs(&pop, &explicit, o))
         }),
         threads,
     });
@@ -224,9 +278,11 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         scalar_s: accurate_s,
         batched_s: accurate_s,
         threads_s: time(cfg.repeats.min(3), || {
-            pop.par_iter()
-                .zip(out.par_iter_mut())
-                .for_each(|(p, o)| *o = bouc_wen::cost(p, &u, &y))
+            everywhere(pop.len(), |o| {
+                for (p, o) in pop.iter().zip(o.iter_mut()) {
+                    *o = bouc_wen::cost(p, &u, &y);
+                }
+            })
         }),
         threads,
     });
@@ -241,7 +297,6 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         (Mode::OneStepAhead, "one-step"),
         (Mode::FreeRun, "free-run"),
     ] {
-        let rblock = d * crate::physics::rbf_fast::LANES;
         rows.push(Row {
             name: format!("rbf 3-7-1 {tag}"),
             unit: "M samples/s",
@@ -256,9 +311,7 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
             }),
             batched_s: time(cfg.repeats, || batch.costs(&rpop, mode, &mut out)),
             threads_s: time(cfg.repeats, || {
-                rpop.par_chunks(rblock)
-                    .zip(out.par_chunks_mut(crate::physics::rbf_fast::LANES))
-                    .for_each(|(p, o)| batch.costs(p, mode, o))
+                everywhere(cfg.population, |o| batch.costs(&rpop, mode, o))
             }),
             threads,
         });
@@ -282,9 +335,7 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
             }),
             batched_s: time(cfg.repeats, || f.evaluate_batch(&xs, &mut vals)),
             threads_s: time(cfg.repeats, || {
-                xs.par_chunks(dim * 200)
-                    .zip(vals.par_chunks_mut(200))
-                    .for_each(|(x, v)| f.evaluate_batch(x, v))
+                everywhere(points, |v| f.evaluate_batch(&xs, v))
             }),
             threads,
         });
@@ -296,6 +347,9 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         msga_threads_speedup: msga_threads(cfg),
         accelerated: bouc_wen_fast::accelerated(),
         threads,
+        samples: cfg.samples,
+        population: cfg.population,
+        explicit_check,
     }
 }
 
@@ -364,6 +418,36 @@ fn msga_threads(cfg: &BenchConfig) -> f64 {
 }
 
 impl BenchReport {
+    /// The measurement as JSON (`optbench bench --json FILE`): rates per core in each row's
+    /// unit, the ratios, and the explicit recurrence's check data.
+    pub fn to_json(&self) -> serde_json::Value {
+        let rows: Vec<serde_json::Value> = self
+            .rows
+            .iter()
+            .map(|r| {
+                serde_json::json!({
+                    "name": r.name,
+                    "unit": r.unit,
+                    "scalar": r.rate(r.scalar_s, 1),
+                    "batched": r.rate(r.batched_s, 1),
+                    "threads": r.threads_rate(),
+                    "batched_over_scalar": r.speedup(),
+                    "threads_over_batched": r.threads_speedup(),
+                })
+            })
+            .collect();
+        serde_json::json!({
+            "threads": self.threads,
+            "accelerated": self.accelerated,
+            "samples": self.samples,
+            "population": self.population,
+            "rows": rows,
+            "harness_overhead": self.harness_overhead,
+            "msga_threads_speedup": self.msga_threads_speedup,
+            "explicit_check": self.explicit_check,
+        })
+    }
+
     /// The table as printed by `optbench bench`.
     pub fn render(&self) -> String {
         let mut s = String::new();
@@ -387,13 +471,13 @@ impl BenchReport {
                 r.unit,
                 r.rate(r.scalar_s, 1),
                 r.rate(r.batched_s, 1),
-                r.rate(r.threads_s, r.threads),
+                r.threads_rate(),
                 r.speedup(),
-                r.batched_s / r.threads_s,
+                r.threads_speedup(),
             ));
         }
         s.push_str(
-            "\nscalar: one individual at a time (std exp/powf); batched: the objective's population path;\nthreads: batched on every thread, per core; b/s = batched/scalar; t/b = threads/batched (whole machine)\n\n",
+            "\nscalar: one individual at a time (std exp/powf); batched: the objective's population path;\nthreads: every thread running the batched path at once, per core; b/s = batched/scalar;\nt/b = all threads/one thread (whole machine)\n\n",
         );
         s.push_str(&format!(
             "harness overhead on griewank-30 (Evaluator vs bare loop): {:+.1} % (goal <= 5 %)\n",
@@ -432,5 +516,12 @@ mod tests {
         let last = text.lines().last().unwrap();
         assert!(last.starts_with("bouc-wen batched/scalar = "), "{last}");
         assert!(last.ends_with('x'));
+        let json = r.to_json();
+        assert_eq!(json["rows"].as_array().unwrap().len(), 7);
+        let check = &r.explicit_check;
+        assert_eq!(check.u.len(), 200);
+        for (a, b) in check.reference.iter().zip(&check.batched) {
+            assert!(((a - b) / a).abs() < 1e-6, "{a} vs {b}");
+        }
     }
 }

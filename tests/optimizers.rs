@@ -157,6 +157,54 @@ fn msga_is_identical_on_threads_and_in_one_thread_and_across_repeats() {
     }
 }
 
+/// [`Probe`] with random pauses (from the clock) that shuffle which membrane thread runs
+/// ahead of which: MSGA's membranes drift up to a step apart, and their results must not.
+struct Jitter(Probe, std::sync::atomic::AtomicU64);
+
+impl Objective for Jitter {
+    fn name(&self) -> &str {
+        "jitter"
+    }
+    fn bounds(&self) -> &optbench::objective::Bounds {
+        self.0.bounds()
+    }
+    fn evaluate(&self, x: &[f64]) -> f64 {
+        if self.1.fetch_add(1, Ordering::SeqCst).is_multiple_of(16) {
+            let nanos = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .unwrap()
+                .subsec_nanos();
+            std::thread::sleep(std::time::Duration::from_micros(u64::from(nanos % 400)));
+        }
+        self.0.evaluate(x)
+    }
+}
+
+#[test]
+fn msga_results_do_not_depend_on_scheduling() {
+    let single = MsgaConfig {
+        threads: false,
+        ..MsgaConfig::default()
+    };
+    for (kind, dim, stop) in [
+        (TestFunction::Griewank, 3, None),
+        (TestFunction::Sphere, 4, Some(1e-2)),
+    ] {
+        let plain: Arc<dyn Objective> = Arc::new(Probe::new(kind, dim));
+        let want = without_time(trial(plain, &single, 3037, stop, 5));
+        for _ in 0..3 {
+            let jitter: Arc<dyn Objective> = Arc::new(Jitter(
+                Probe::new(kind, dim),
+                std::sync::atomic::AtomicU64::new(0),
+            ));
+            let got = without_time(trial(jitter, &MsgaConfig::default(), 3037, stop, 5));
+            assert_eq!(got.best, want.best, "{kind:?}");
+            assert_eq!(got.improvements, want.improvements, "{kind:?}");
+            assert_eq!(got.evaluations, want.evaluations, "{kind:?}");
+        }
+    }
+}
+
 #[test]
 fn different_seeds_give_different_runs() {
     for (name, cfg) in all_configs() {

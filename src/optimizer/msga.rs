@@ -22,9 +22,11 @@
 //! # Communication rule
 //! After each evolution step every membrane sends copies of its best `exchange` share
 //! (30 %, 12 objects) to each neighbour in the tree (its parent and its children) over a
-//! channel. A receiver takes the incoming objects in a fixed order (parent first, then
-//! children by label); each one that is not already present and beats the receiver's
-//! current worst object replaces that worst object. The seed does not say who receives
+//! channel, and takes in what its neighbours sent after their *previous* step (one step
+//! late, so that no membrane waits for a neighbour's current step; see below). A receiver
+//! takes the incoming objects in a fixed order (parent first, then children by label); each
+//! one that is not already present and beats the receiver's current worst object replaces
+//! that worst object. The seed does not say who receives
 //! the best objects; exchanging along the tree edges in both directions lets good objects
 //! reach the skin, which the seed names as the output, while inner membranes keep evolving
 //! their own lines. The harness records the best of every evaluation, so the reported
@@ -32,12 +34,18 @@
 //!
 //! # Threads and determinism
 //! With `threads = true` each membrane runs on its own OS thread: the coordinator grants
-//! each membrane its evaluations for the round, the membrane evolves and evaluates on its
+//! each membrane its evaluations two rounds ahead, the membrane evolves and evaluates on its
 //! thread, reports back, and exchanges migrants with its neighbours directly over channels.
-//! Rounds are synchronous, each membrane draws only from its own stream, receivers read
-//! their neighbours in a fixed order, and the coordinator commits the evaluations in
-//! membrane order, so results are bit-identical to the single-thread driver
-//! (`threads = false`) and independent of scheduling.
+//! Nothing is a barrier: a membrane that finishes a step early starts its next one at once
+//! (its grant is already there) and only waits if a neighbour has not yet finished the
+//! step before, so five membranes keep two cores busy instead of running in lockstep
+//! rounds (at most 5/3 = 1.67x on two cores). Results stay deterministic: each membrane
+//! draws only from its own stream, each edge's channel carries exactly one message per
+//! step in order (so "the previous step's" is a fixed message, whenever it arrives), grant
+//! quotas depend on counts only, and the coordinator commits the evaluations in round and
+//! membrane order; results are bit-identical to the single-thread driver
+//! (`threads = false`, which applies the same one-step lag) and independent of scheduling
+//! (tested with random pauses).
 
 use super::operators::{Mutation, Roulette, arithmetic_crossover, ranking};
 use super::{Optimizer, OptimizerConfig};
@@ -116,6 +124,7 @@ impl OptimizerConfig for MsgaConfig {
                 membranes,
                 neighbours: self.neighbours(),
                 values: vec![0.0; self.objects],
+                previous: None,
             })
         }
     }
@@ -273,6 +282,8 @@ struct Sequential {
     membranes: Vec<Membrane>,
     neighbours: Vec<Vec<usize>>,
     values: Vec<f64>,
+    /// The migrants of the previous evolution step (received one step late).
+    previous: Option<Vec<Migrants>>,
 }
 
 impl Optimizer for Sequential {
@@ -285,13 +296,19 @@ impl Optimizer for Sequential {
         }
         if evolution {
             let out: Vec<Migrants> = self.membranes.iter().map(Membrane::migrants).collect();
-            for (m, nb) in self.membranes.iter_mut().zip(&self.neighbours) {
-                let incoming: Vec<Migrants> = nb.iter().map(|&j| out[j].clone()).collect();
-                m.receive(&incoming);
+            if let Some(previous) = self.previous.replace(out) {
+                for (m, nb) in self.membranes.iter_mut().zip(&self.neighbours) {
+                    let incoming: Vec<Migrants> = nb.iter().map(|&j| previous[j].clone()).collect();
+                    m.receive(&incoming);
+                }
             }
         }
     }
 }
+
+/// Rounds granted beyond the one being collected: membranes may drift this far apart
+/// (neighbours stay within a step of each other through the migrants' lag).
+const AHEAD: usize = 2;
 
 /// One OS thread per membrane; the coordinator only grants and commits evaluations.
 struct Threaded {
@@ -299,6 +316,8 @@ struct Threaded {
     reports: Vec<Receiver<Evaluated>>,
     handles: Vec<JoinHandle<()>>,
     objects: usize,
+    /// Rounds granted and not yet collected.
+    open: usize,
 }
 
 impl Threaded {
@@ -329,6 +348,7 @@ impl Threaded {
             let handle = std::thread::Builder::new()
                 .name(format!("msga-membrane-{id}"))
                 .spawn(move || {
+                    let mut sent = 0usize;
                     while let Ok(grant) = cmd_rx.recv() {
                         let evolution = membrane.initialized;
                         let evaluated = grant.evaluate(membrane.propose());
@@ -339,13 +359,22 @@ impl Threaded {
                         if evolution {
                             let out = membrane.migrants();
                             for tx in &to {
-                                tx.send(out.clone()).expect("neighbour membrane stopped");
+                                // A neighbour gone means the trial is over.
+                                let _ = tx.send(out.clone());
                             }
-                            let incoming: Vec<Migrants> = from
-                                .iter()
-                                .map(|rx| rx.recv().expect("neighbour membrane stopped"))
-                                .collect();
-                            membrane.receive(&incoming);
+                            sent += 1;
+                            if sent > 1 {
+                                // Each edge carries one message per step, in order: this
+                                // reads the neighbours' previous step.
+                                let Ok(incoming) = from
+                                    .iter()
+                                    .map(|rx| rx.recv())
+                                    .collect::<Result<Vec<Migrants>, _>>()
+                                else {
+                                    return;
+                                };
+                                membrane.receive(&incoming);
+                            }
                         }
                     }
                 })
@@ -359,19 +388,41 @@ impl Threaded {
             reports,
             handles,
             objects,
+            open: 0,
         }
     }
 }
 
 impl Optimizer for Threaded {
     fn step(&mut self, ev: &mut Evaluator) {
-        for tx in &self.commands {
-            tx.send(ev.grant(self.objects))
-                .expect("membrane thread stopped");
+        let grant_round = |ev: &mut Evaluator| {
+            for tx in &self.commands {
+                tx.send(ev.grant(self.objects))
+                    .expect("membrane thread stopped");
+            }
+        };
+        let commit_round = |ev: &mut Evaluator| {
+            for rx in &self.reports {
+                let evaluated = rx.recv().expect("membrane thread panicked");
+                ev.commit(evaluated);
+            }
+        };
+        // Grants go out `AHEAD` rounds before their round is collected, so that a membrane
+        // done early starts its next steps at once instead of waiting for the slowest (the
+        // quotas depend on counts only, so the results do not change).
+        while self.open <= AHEAD {
+            grant_round(ev);
+            self.open += 1;
         }
-        for rx in &self.reports {
-            let evaluated = rx.recv().expect("membrane thread panicked");
-            ev.commit(evaluated);
+        commit_round(ev);
+        self.open -= 1;
+        if ev.done() {
+            // The rounds granted ahead come after the end: committed, they count nothing
+            // and release their reservations.
+            while self.open > 0 {
+                commit_round(ev);
+                self.open -= 1;
+            }
         }
     }
 }
