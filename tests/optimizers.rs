@@ -206,6 +206,32 @@ fn msga_results_do_not_depend_on_scheduling() {
 }
 
 #[test]
+fn msga_hands_over_to_a_polish_with_nothing_reserved() {
+    use optbench::optimizer::nelder_mead::PolishedConfig;
+    // MSGA's threads are granted rounds ahead; when a polish takes over at MSGA's own budget
+    // no round may still hold evaluations (the polish would starve), and the threaded run
+    // must give the same trial as the single-threaded one. Switch points fall inside a round.
+    for local in ["nelder-mead", "lbfgs"] {
+        let polished = |threads: bool| PolishedConfig {
+            global: Arc::new(MsgaConfig {
+                threads,
+                ..MsgaConfig::default()
+            }),
+            share: 0.1,
+            local: optbench::optimizer::polish_method(Some(local)).unwrap(),
+        };
+        for budget in [1037u64, 3000, 4444] {
+            let obj = || -> Arc<dyn Objective> { Arc::new(Probe::new(TestFunction::Griewank, 5)) };
+            let want = without_time(trial(obj(), &polished(false), budget, None, 3));
+            let got = without_time(trial(obj(), &polished(true), budget, None, 3));
+            assert_eq!(got.evaluations, budget, "{local} {budget}");
+            assert_eq!(got.best, want.best, "{local} {budget}");
+            assert_eq!(got.improvements, want.improvements, "{local} {budget}");
+        }
+    }
+}
+
+#[test]
 fn different_seeds_give_different_runs() {
     for (name, cfg) in all_configs() {
         let obj = || -> Arc<dyn Objective> { Arc::new(Probe::new(TestFunction::Griewank, 2)) };

@@ -113,12 +113,17 @@ impl OptimizerConfig for MsgaConfig {
         self.objects * self.structure.len()
     }
 
-    fn start(&self, bounds: &Bounds, _budget: u64, seed: &TrialSeed) -> Box<dyn Optimizer> {
+    fn start(&self, bounds: &Bounds, budget: u64, seed: &TrialSeed) -> Box<dyn Optimizer> {
         let membranes: Vec<Membrane> = (0..self.structure.len())
             .map(|id| Membrane::new(self, bounds, seed.rng(1 + id as u64)))
             .collect();
         if self.threads {
-            Box::new(Threaded::spawn(membranes, self.neighbours(), self.objects))
+            Box::new(Threaded::spawn(
+                membranes,
+                self.neighbours(),
+                self.objects,
+                budget,
+            ))
         } else {
             Box::new(Sequential {
                 membranes,
@@ -318,10 +323,19 @@ struct Threaded {
     objects: usize,
     /// Rounds granted and not yet collected.
     open: usize,
+    /// This optimizer's own budget: less than the evaluator's when a polish follows.
+    budget: u64,
+    /// Evaluations granted so far (committed or open).
+    granted: u64,
 }
 
 impl Threaded {
-    fn spawn(membranes: Vec<Membrane>, neighbours: Vec<Vec<usize>>, objects: usize) -> Self {
+    fn spawn(
+        membranes: Vec<Membrane>,
+        neighbours: Vec<Vec<usize>>,
+        objects: usize,
+        budget: u64,
+    ) -> Self {
         let m = membranes.len();
         // One channel per directed edge of the membrane tree.
         let mut inbox: Vec<Vec<Option<Receiver<Migrants>>>> =
@@ -389,16 +403,19 @@ impl Threaded {
             handles,
             objects,
             open: 0,
+            budget,
+            granted: 0,
         }
     }
 }
 
 impl Optimizer for Threaded {
     fn step(&mut self, ev: &mut Evaluator) {
-        let grant_round = |ev: &mut Evaluator| {
+        let grant_round = |ev: &mut Evaluator, granted: &mut u64| {
             for tx in &self.commands {
-                tx.send(ev.grant(self.objects))
-                    .expect("membrane thread stopped");
+                let grant = ev.grant(self.objects);
+                *granted += grant.quota() as u64;
+                tx.send(grant).expect("membrane thread stopped");
             }
         };
         let commit_round = |ev: &mut Evaluator| {
@@ -409,9 +426,12 @@ impl Optimizer for Threaded {
         };
         // Grants go out `AHEAD` rounds before their round is collected, so that a membrane
         // done early starts its next steps at once instead of waiting for the slowest (the
-        // quotas depend on counts only, so the results do not change).
-        while self.open <= AHEAD {
-            grant_round(ev);
+        // quotas depend on counts only, so the results do not change). A round is granted
+        // only if the rounds before it leave the optimizer's own budget unspent, the
+        // condition under which the caller steps again (a polish may take over at that
+        // budget, and must find no evaluations still reserved).
+        while self.open == 0 || (self.open <= AHEAD && self.granted < self.budget) {
+            grant_round(ev, &mut self.granted);
             self.open += 1;
         }
         commit_round(ev);
