@@ -295,6 +295,31 @@ fn shipped_suites_are_valid() {
     }
 }
 
+#[test]
+fn main_suite_runs_end_to_end_at_small_size() {
+    // The README's first command, with every optimizer of the shipped suite (the polished
+    // MSGA included) at a budget that spans several MSGA rounds past the polish switch.
+    let dir = tempfile::tempdir().unwrap();
+    let suite = concat!(env!("CARGO_MANIFEST_DIR"), "/suites/functions.toml");
+    let out = optbench(
+        &[
+            "run", suite, "--trials", "2", "--budget", "2000", "--out", "r", "-q",
+        ],
+        dir.path(),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("r/summary.json")).unwrap()).unwrap();
+    let text = summary.to_string();
+    for id in ["MSGA", "MSGA-LBFGS", "CMA-ES", "SHADE"] {
+        assert!(text.contains(&format!("\"{id}\"")), "{id} missing");
+    }
+}
+
 fn report_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
     let mut out = Vec::new();
     for sub in ["", "tables", "plots"] {
