@@ -497,6 +497,14 @@ const MSGA_PARAMS: &[Spec] = &[
         default: D::Bool(true),
         help: "one OS thread per membrane; false runs them in turn (same results)",
     },
+    Spec {
+        name: "migration_lag",
+        kind: Kind::Int { min: 0, max: 1 },
+        default: D::Int(0),
+        help: "steps late that migrants are taken in: 0 = the seed's rule (neighbours wait \
+               for each other every step), 1 = the previous step's (membranes drift; faster \
+               on fewer cores than membranes, a different algorithm)",
+    },
 ];
 
 fn build_msga(p: &Params) -> Result<Arc<dyn OptimizerConfig>, Error> {
@@ -507,6 +515,7 @@ fn build_msga(p: &Params) -> Result<Arc<dyn OptimizerConfig>, Error> {
         ps: p.float("ps"),
         exchange: p.float("exchange"),
         threads: p.bool("threads"),
+        migration_lag: p.usize("migration_lag"),
         ..MsgaConfig::default()
     }))
 }

@@ -44,6 +44,13 @@ fn all_configs() -> Vec<(String, Arc<dyn OptimizerConfig>)> {
             ..MsgaConfig::default()
         }),
     ));
+    v.push((
+        "msga-migration-lag-1".into(),
+        Arc::new(MsgaConfig {
+            migration_lag: 1,
+            ..MsgaConfig::default()
+        }),
+    ));
     v
 }
 
@@ -135,26 +142,35 @@ fn msga_runs_one_os_thread_per_membrane() {
 
 #[test]
 fn msga_is_identical_on_threads_and_in_one_thread_and_across_repeats() {
-    let threaded = MsgaConfig::default();
-    let single = MsgaConfig {
-        threads: false,
-        ..MsgaConfig::default()
-    };
-    for (kind, dim, stop) in [
-        (TestFunction::Griewank, 2, None),
-        (TestFunction::Schwefel, 10, None),
-        (TestFunction::Sphere, 4, Some(1e-3)),
-    ] {
-        let run = |cfg: &MsgaConfig| {
-            let obj: Arc<dyn Objective> = Arc::new(Probe::new(kind, dim));
-            without_time(trial(obj, cfg, 8000, stop, 99))
+    let mut lagged = Vec::new();
+    for migration_lag in [0, 1] {
+        let threaded = MsgaConfig {
+            migration_lag,
+            ..MsgaConfig::default()
         };
-        let a = run(&threaded);
-        assert_eq!(a, run(&single), "{kind:?}");
-        for _ in 0..3 {
-            assert_eq!(a, run(&threaded), "{kind:?}: repeat");
+        let single = MsgaConfig {
+            threads: false,
+            ..threaded.clone()
+        };
+        for (kind, dim, stop) in [
+            (TestFunction::Griewank, 2, None),
+            (TestFunction::Schwefel, 10, None),
+            (TestFunction::Sphere, 4, Some(1e-3)),
+        ] {
+            let run = |cfg: &MsgaConfig| {
+                let obj: Arc<dyn Objective> = Arc::new(Probe::new(kind, dim));
+                without_time(trial(obj, cfg, 8000, stop, 99))
+            };
+            let a = run(&threaded);
+            assert_eq!(a, run(&single), "{kind:?} lag {migration_lag}");
+            for _ in 0..3 {
+                assert_eq!(a, run(&threaded), "{kind:?} lag {migration_lag}: repeat");
+            }
+            lagged.push(a);
         }
     }
+    // The lag is a different algorithm: the migrants change the later steps.
+    assert_ne!(lagged[0].improvements, lagged[3].improvements);
 }
 
 /// [`Probe`] with random pauses (from the clock) that shuffle which membrane thread runs
@@ -182,25 +198,32 @@ impl Objective for Jitter {
 
 #[test]
 fn msga_results_do_not_depend_on_scheduling() {
-    let single = MsgaConfig {
-        threads: false,
-        ..MsgaConfig::default()
-    };
-    for (kind, dim, stop) in [
-        (TestFunction::Griewank, 3, None),
-        (TestFunction::Sphere, 4, Some(1e-2)),
-    ] {
-        let plain: Arc<dyn Objective> = Arc::new(Probe::new(kind, dim));
-        let want = without_time(trial(plain, &single, 3037, stop, 5));
-        for _ in 0..3 {
-            let jitter: Arc<dyn Objective> = Arc::new(Jitter(
-                Probe::new(kind, dim),
-                std::sync::atomic::AtomicU64::new(0),
-            ));
-            let got = without_time(trial(jitter, &MsgaConfig::default(), 3037, stop, 5));
-            assert_eq!(got.best, want.best, "{kind:?}");
-            assert_eq!(got.improvements, want.improvements, "{kind:?}");
-            assert_eq!(got.evaluations, want.evaluations, "{kind:?}");
+    for migration_lag in [0, 1] {
+        let threaded = MsgaConfig {
+            migration_lag,
+            ..MsgaConfig::default()
+        };
+        let single = MsgaConfig {
+            threads: false,
+            ..threaded.clone()
+        };
+        for (kind, dim, stop) in [
+            (TestFunction::Griewank, 3, None),
+            (TestFunction::Sphere, 4, Some(1e-2)),
+        ] {
+            let plain: Arc<dyn Objective> = Arc::new(Probe::new(kind, dim));
+            let want = without_time(trial(plain, &single, 3037, stop, 5));
+            for _ in 0..3 {
+                let jitter: Arc<dyn Objective> = Arc::new(Jitter(
+                    Probe::new(kind, dim),
+                    std::sync::atomic::AtomicU64::new(0),
+                ));
+                let got = without_time(trial(jitter, &threaded, 3037, stop, 5));
+                let what = format!("{kind:?} lag {migration_lag}");
+                assert_eq!(got.best, want.best, "{what}");
+                assert_eq!(got.improvements, want.improvements, "{what}");
+                assert_eq!(got.evaluations, want.evaluations, "{what}");
+            }
         }
     }
 }
@@ -211,10 +234,11 @@ fn msga_hands_over_to_a_polish_with_nothing_reserved() {
     // MSGA's threads are granted rounds ahead; when a polish takes over at MSGA's own budget
     // no round may still hold evaluations (the polish would starve), and the threaded run
     // must give the same trial as the single-threaded one. Switch points fall inside a round.
-    for local in ["nelder-mead", "lbfgs"] {
+    for (local, migration_lag) in [("nelder-mead", 0), ("lbfgs", 1)] {
         let polished = |threads: bool| PolishedConfig {
             global: Arc::new(MsgaConfig {
                 threads,
+                migration_lag,
                 ..MsgaConfig::default()
             }),
             share: 0.1,

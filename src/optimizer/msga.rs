@@ -22,30 +22,32 @@
 //! # Communication rule
 //! After each evolution step every membrane sends copies of its best `exchange` share
 //! (30 %, 12 objects) to each neighbour in the tree (its parent and its children) over a
-//! channel, and takes in what its neighbours sent after their *previous* step (one step
-//! late, so that no membrane waits for a neighbour's current step; see below). A receiver
-//! takes the incoming objects in a fixed order (parent first, then children by label); each
-//! one that is not already present and beats the receiver's current worst object replaces
-//! that worst object. The seed does not say who receives
-//! the best objects; exchanging along the tree edges in both directions lets good objects
-//! reach the skin, which the seed names as the output, while inner membranes keep evolving
-//! their own lines. The harness records the best of every evaluation, so the reported
-//! result is the best object found anywhere, which the skin holds one or two rounds later.
+//! channel, and takes in what its neighbours sent after the same step (`migration_lag =
+//! 0`, the seed's rule) or after their previous step (`migration_lag = 1`, so that no
+//! membrane waits for a neighbour's current step; see below). A receiver takes the incoming
+//! objects in a fixed order (parent first, then children by label); each one that is not
+//! already present and beats the receiver's current worst object replaces that worst
+//! object. The seed does not say who receives the best objects; exchanging along the tree
+//! edges in both directions lets good objects reach the skin, which the seed names as the
+//! output, while inner membranes keep evolving their own lines. The harness records the
+//! best of every evaluation, so the reported result is the best object found anywhere,
+//! which the skin holds one or two rounds later.
 //!
 //! # Threads and determinism
 //! With `threads = true` each membrane runs on its own OS thread: the coordinator grants
 //! each membrane its evaluations two rounds ahead, the membrane evolves and evaluates on its
 //! thread, reports back, and exchanges migrants with its neighbours directly over channels.
-//! Nothing is a barrier: a membrane that finishes a step early starts its next one at once
-//! (its grant is already there) and only waits if a neighbour has not yet finished the
-//! step before, so five membranes keep two cores busy instead of running in lockstep
-//! rounds (at most 5/3 = 1.67x on two cores). Results stay deterministic: each membrane
-//! draws only from its own stream, each edge's channel carries exactly one message per
-//! step in order (so "the previous step's" is a fixed message, whenever it arrives), grant
-//! quotas depend on counts only, and the coordinator commits the evaluations in round and
-//! membrane order; results are bit-identical to the single-thread driver
-//! (`threads = false`, which applies the same one-step lag) and independent of scheduling
-//! (tested with random pauses).
+//! No coordinator round is a barrier: a membrane waits only for its neighbours' migrants.
+//! With the seed's rule that still couples neighbours every step, so five membranes on two
+//! cores run close to lockstep (at most 5/3 = 1.67x over one thread); with
+//! `migration_lag = 1` a membrane that finishes a step early starts its next one at once
+//! and only waits if a neighbour has not yet finished the step before, which keeps two
+//! cores busy. Results stay deterministic either way: each membrane draws only from its own
+//! stream, each edge's channel carries exactly one message per step in order (so "the step
+//! `t - lag` message" is a fixed message, whenever it arrives), grant quotas depend on
+//! counts only, and the coordinator commits the evaluations in round and membrane order;
+//! results are bit-identical to the single-thread driver (`threads = false`, same lag) and
+//! independent of scheduling (tested with random pauses).
 
 use super::operators::{Mutation, Roulette, arithmetic_crossover, ranking};
 use super::{Optimizer, OptimizerConfig};
@@ -73,6 +75,9 @@ pub struct MsgaConfig {
     pub exchange: f64,
     /// One OS thread per membrane (true) or all membranes in the calling thread (false).
     pub threads: bool,
+    /// Evolution steps late that migrants are taken in (0: the seed's rule; 1: the
+    /// previous step's, so membranes need not wait for each other).
+    pub migration_lag: usize,
 }
 
 impl Default for MsgaConfig {
@@ -85,6 +90,7 @@ impl Default for MsgaConfig {
             ps: 0.05,
             exchange: 0.3,
             threads: true,
+            migration_lag: 0,
         }
     }
 }
@@ -123,13 +129,15 @@ impl OptimizerConfig for MsgaConfig {
                 self.neighbours(),
                 self.objects,
                 budget,
+                self.migration_lag,
             ))
         } else {
             Box::new(Sequential {
                 membranes,
                 neighbours: self.neighbours(),
                 values: vec![0.0; self.objects],
-                previous: None,
+                lag: self.migration_lag,
+                sent: std::collections::VecDeque::new(),
             })
         }
     }
@@ -287,8 +295,9 @@ struct Sequential {
     membranes: Vec<Membrane>,
     neighbours: Vec<Vec<usize>>,
     values: Vec<f64>,
-    /// The migrants of the previous evolution step (received one step late).
-    previous: Option<Vec<Migrants>>,
+    lag: usize,
+    /// Every membrane's migrants of the last `lag + 1` evolution steps, oldest first.
+    sent: std::collections::VecDeque<Vec<Migrants>>,
 }
 
 impl Optimizer for Sequential {
@@ -300,10 +309,12 @@ impl Optimizer for Sequential {
             m.accept(&self.values);
         }
         if evolution {
-            let out: Vec<Migrants> = self.membranes.iter().map(Membrane::migrants).collect();
-            if let Some(previous) = self.previous.replace(out) {
+            self.sent
+                .push_back(self.membranes.iter().map(Membrane::migrants).collect());
+            if self.sent.len() > self.lag {
+                let due = self.sent.pop_front().expect("sent is not empty");
                 for (m, nb) in self.membranes.iter_mut().zip(&self.neighbours) {
-                    let incoming: Vec<Migrants> = nb.iter().map(|&j| previous[j].clone()).collect();
+                    let incoming: Vec<Migrants> = nb.iter().map(|&j| due[j].clone()).collect();
                     m.receive(&incoming);
                 }
             }
@@ -312,7 +323,7 @@ impl Optimizer for Sequential {
 }
 
 /// Rounds granted beyond the one being collected: membranes may drift this far apart
-/// (neighbours stay within a step of each other through the migrants' lag).
+/// (neighbours stay within `migration_lag` steps of each other through the migrants).
 const AHEAD: usize = 2;
 
 /// One OS thread per membrane; the coordinator only grants and commits evaluations.
@@ -335,6 +346,7 @@ impl Threaded {
         neighbours: Vec<Vec<usize>>,
         objects: usize,
         budget: u64,
+        lag: usize,
     ) -> Self {
         let m = membranes.len();
         // One channel per directed edge of the membrane tree.
@@ -377,9 +389,9 @@ impl Threaded {
                                 let _ = tx.send(out.clone());
                             }
                             sent += 1;
-                            if sent > 1 {
+                            if sent > lag {
                                 // Each edge carries one message per step, in order: this
-                                // reads the neighbours' previous step.
+                                // reads the neighbours' step `lag` steps back.
                                 let Ok(incoming) = from
                                     .iter()
                                     .map(|rx| rx.recv())
