@@ -140,18 +140,24 @@ fn msga_runs_one_os_thread_per_membrane() {
     assert_eq!(threads, expected);
 }
 
+/// MSGA with `migration_lag` on its membrane threads and in one thread.
+fn msga_threaded_and_single(migration_lag: usize) -> (MsgaConfig, MsgaConfig) {
+    let threaded = MsgaConfig {
+        migration_lag,
+        ..MsgaConfig::default()
+    };
+    let single = MsgaConfig {
+        threads: false,
+        ..threaded.clone()
+    };
+    (threaded, single)
+}
+
 #[test]
 fn msga_is_identical_on_threads_and_in_one_thread_and_across_repeats() {
     let mut lagged = Vec::new();
     for migration_lag in [0, 1] {
-        let threaded = MsgaConfig {
-            migration_lag,
-            ..MsgaConfig::default()
-        };
-        let single = MsgaConfig {
-            threads: false,
-            ..threaded.clone()
-        };
+        let (threaded, single) = msga_threaded_and_single(migration_lag);
         for (kind, dim, stop) in [
             (TestFunction::Griewank, 2, None),
             (TestFunction::Schwefel, 10, None),
@@ -199,14 +205,7 @@ impl Objective for Jitter {
 #[test]
 fn msga_results_do_not_depend_on_scheduling() {
     for migration_lag in [0, 1] {
-        let threaded = MsgaConfig {
-            migration_lag,
-            ..MsgaConfig::default()
-        };
-        let single = MsgaConfig {
-            threads: false,
-            ..threaded.clone()
-        };
+        let (threaded, single) = msga_threaded_and_single(migration_lag);
         for (kind, dim, stop) in [
             (TestFunction::Griewank, 3, None),
             (TestFunction::Sphere, 4, Some(1e-2)),

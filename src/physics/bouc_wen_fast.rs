@@ -527,28 +527,10 @@ fn fast_blocks(params: &[BoucWenParams], input: &FastInput, out: &mut [f64]) {
 /// halved at the end (exact: a power of two).
 #[inline(always)]
 fn run_explicit<M: Math, const W: usize>(ps: &[BoucWenParams], input: &FastInput, out: &mut [f64]) {
-    let mut ln = [Lane::default(); W];
-    for (l, p) in ln.iter_mut().zip(ps) {
-        *l = Lane::new(p, input.umax);
-    }
-    // Structure of arrays (an array of `Shape`s would need gathers).
-    let soa = |f: fn(&Lane) -> f64| -> [f64; W] { std::array::from_fn(|i| f(&ln[i])) };
-    let (alpha, c_pos, c_neg, n) = (
-        soa(|l| l.shape.alpha),
-        soa(|l| l.shape.c_pos),
-        soa(|l| l.shape.c_neg),
-        soa(|l| l.shape.n),
-    );
-    let (eq_lo, eq_hi) = (soa(|l| l.shape.eq_lo), soa(|l| l.shape.eq_hi));
-    let (d_e, d0, bound) = (soa(|l| l.d_e), soa(|l| l.d0), soa(|l| l.bound));
-    let shape = |i: usize| Shape {
-        alpha: alpha[i],
-        c_pos: c_pos[i],
-        c_neg: c_neg[i],
-        n: n[i],
-        eq_lo: eq_lo[i],
-        eq_hi: eq_hi[i],
-    };
+    let lanes = Lanes::<W>::new(ps, input.umax);
+    let Lanes {
+        n, d_e, d0, bound, ..
+    } = lanes;
     let never = f64::INFINITY;
     let (mut h, mut j, mut at) = ([0.0; W], [0.0; W], [never; W]);
     let len = input.len();
@@ -570,7 +552,7 @@ fn run_explicit<M: Math, const W: usize>(ps: &[BoucWenParams], input: &FastInput
                 pn[i] = M::pow_finish(pn[i], n[i]);
             }
             for i in 0..W {
-                h[i] = s * explicit_update(g[i], pn[i], l, shape(i));
+                h[i] = s * explicit_update(g[i], pn[i], l, lanes.shape(i));
             }
         }
         let (u, y, kf) = (us[k], ys[k], k as f64);
@@ -581,57 +563,35 @@ fn run_explicit<M: Math, const W: usize>(ps: &[BoucWenParams], input: &FastInput
             at[i] = select(c < at[i], c, at[i]);
         }
     }
-    for i in 0..out.len().min(W) {
-        out[i] = if at[i] == never {
-            input.clip(0.5 * j[i])
-        } else {
-            input.penalty(at[i] as usize)
-        };
-    }
+    j.iter_mut().for_each(|j| *j *= 0.5);
+    write_costs(&j, &at, input, out);
 }
 
 /// `W` individuals through the whole recording, structure of arrays, lanes innermost.
 #[inline(always)]
 fn run_block<M: Math, const W: usize>(ps: &[BoucWenParams], input: &FastInput, out: &mut [f64]) {
-    let mut ln = [Lane::default(); W];
-    for (l, p) in ln.iter_mut().zip(ps) {
-        *l = Lane::new(p, input.umax);
-    }
-    let soa = |f: fn(&Lane) -> f64| -> [f64; W] { std::array::from_fn(|i| f(&ln[i])) };
-    let (alpha, c_pos, c_neg, n) = (
-        soa(|l| l.shape.alpha),
-        soa(|l| l.shape.c_pos),
-        soa(|l| l.shape.c_neg),
-        soa(|l| l.shape.n),
-    );
-    let (d_e, d0, eq_lo, eq_hi, bound) = (
-        soa(|l| l.d_e),
-        soa(|l| l.d0),
-        soa(|l| l.shape.eq_lo),
-        soa(|l| l.shape.eq_hi),
-        soa(|l| l.bound),
-    );
+    let lanes = Lanes::<W>::new(ps, input.umax);
+    let Lanes {
+        alpha,
+        n,
+        d_e,
+        d0,
+        bound,
+        ..
+    } = lanes;
     let never = f64::INFINITY;
     let (mut h, mut j, mut at) = ([0.0; W], [0.0; W], [never; W]);
     for k in 0..input.len() {
         let (s, l) = (input.sign[k], input.ell[k]);
         if l > 0.0 {
             let half_l = 0.5 * l;
-            let sh = |i: usize| Shape {
-                alpha: alpha[i],
-                c_pos: c_pos[i],
-                c_neg: c_neg[i],
-                n: n[i],
-                eq_lo: eq_lo[i],
-                eq_hi: eq_hi[i],
-            };
             for _ in 0..input.substeps {
                 let (mut g, mut a, mut b) = ([0.0; W], [0.0; W], [0.0; W]);
                 for i in 0..W {
                     (g[i], a[i]) = stage_log_g::<M>(h[i], s);
                 }
                 for i in 0..W {
-                    (a[i], b[i]) = stage_predict::<M>(g[i], a[i], half_l, sh(i));
+                    (a[i], b[i]) = stage_predict::<M>(g[i], a[i], half_l, lanes.shape(i));
                 }
                 for i in 0..W {
                     a[i] = M::log2(a[i]);
@@ -653,8 +613,63 @@ fn run_block<M: Math, const W: usize>(ps: &[BoucWenParams], input: &FastInput, o
             at[i] = select(bad & (at[i] == never), kf, at[i]);
         }
     }
+    write_costs(&j, &at, input, out);
+}
+
+/// A block's lanes as structure of arrays (an array of `Shape`s would need gathers).
+#[derive(Clone, Copy)]
+struct Lanes<const W: usize> {
+    alpha: [f64; W],
+    c_pos: [f64; W],
+    c_neg: [f64; W],
+    n: [f64; W],
+    eq_lo: [f64; W],
+    eq_hi: [f64; W],
+    d_e: [f64; W],
+    d0: [f64; W],
+    bound: [f64; W],
+}
+
+impl<const W: usize> Lanes<W> {
+    /// The first `W` of `ps` (lanes beyond them keep `Lane::default()`).
+    #[inline(always)]
+    fn new(ps: &[BoucWenParams], umax: f64) -> Self {
+        let mut ln = [Lane::default(); W];
+        for (l, p) in ln.iter_mut().zip(ps) {
+            *l = Lane::new(p, umax);
+        }
+        let soa = |f: fn(&Lane) -> f64| -> [f64; W] { std::array::from_fn(|i| f(&ln[i])) };
+        Lanes {
+            alpha: soa(|l| l.shape.alpha),
+            c_pos: soa(|l| l.shape.c_pos),
+            c_neg: soa(|l| l.shape.c_neg),
+            n: soa(|l| l.shape.n),
+            eq_lo: soa(|l| l.shape.eq_lo),
+            eq_hi: soa(|l| l.shape.eq_hi),
+            d_e: soa(|l| l.d_e),
+            d0: soa(|l| l.d0),
+            bound: soa(|l| l.bound),
+        }
+    }
+
+    #[inline(always)]
+    fn shape(&self, i: usize) -> Shape {
+        Shape {
+            alpha: self.alpha[i],
+            c_pos: self.c_pos[i],
+            c_neg: self.c_neg[i],
+            n: self.n[i],
+            eq_lo: self.eq_lo[i],
+            eq_hi: self.eq_hi[i],
+        }
+    }
+}
+
+/// Each lane's cost `j`, or the penalty for the sample `at` where it blew up (`inf`: never).
+#[inline(always)]
+fn write_costs<const W: usize>(j: &[f64; W], at: &[f64; W], input: &FastInput, out: &mut [f64]) {
     for i in 0..out.len().min(W) {
-        out[i] = if at[i] == never {
+        out[i] = if at[i] == f64::INFINITY {
             input.clip(j[i])
         } else {
             input.penalty(at[i] as usize)
