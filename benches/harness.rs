@@ -57,19 +57,26 @@ fn generations(c: &mut Criterion) {
 }
 
 /// MSGA trial time on 5 membrane threads and on 1 thread, on a cheap objective (where
-/// synchronisation dominates) and a costly one (where evaluation does).
+/// synchronisation dominates) and a costly one (where evaluation does), with the seed's
+/// communication rule and with migrants one step late (`migration_lag = 1`).
 fn msga_threads(c: &mut Criterion) {
     let mut g = c.benchmark_group("msga_threads");
     g.sample_size(10);
     for dim in [30usize, 2000] {
         let obj: Arc<dyn Objective> =
             Arc::new(Function::standard(TestFunction::Griewank, dim).unwrap());
-        for threads in [true, false] {
+        for (name, threads, migration_lag) in [
+            ("5threads", true, 0),
+            ("1thread", false, 0),
+            ("5threads-lag1", true, 1),
+            ("1thread-lag1", false, 1),
+        ] {
             let cfg = MsgaConfig {
                 threads,
+                migration_lag,
                 ..MsgaConfig::default()
             };
-            let id = BenchmarkId::new(if threads { "5threads" } else { "1thread" }, dim);
+            let id = BenchmarkId::new(name, dim);
             g.bench_function(id, |b| {
                 b.iter(|| {
                     run_trial(TrialSpec {
@@ -100,16 +107,18 @@ fn mean_ns(group: &str, id: &str) -> Option<f64> {
 fn print_ratios() {
     let mut lines = Vec::new();
     for dim in [30, 2000] {
-        if let (Some(t5), Some(t1)) = (
-            mean_ns("msga_threads", &format!("5threads/{dim}")),
-            mean_ns("msga_threads", &format!("1thread/{dim}")),
-        ) {
-            lines.push(format!(
-                "msga griewank-{dim}d: 1 thread / 5 threads = {:.2}x ({:.1} ms vs {:.1} ms per 4000-evaluation trial)",
-                t1 / t5,
-                t1 / 1e6,
-                t5 / 1e6
-            ));
+        for (lag, what) in [("", "seed's rule"), ("-lag1", "migration_lag = 1")] {
+            if let (Some(t5), Some(t1)) = (
+                mean_ns("msga_threads", &format!("5threads{lag}/{dim}")),
+                mean_ns("msga_threads", &format!("1thread{lag}/{dim}")),
+            ) {
+                lines.push(format!(
+                    "msga griewank-{dim}d ({what}): 1 thread / 5 threads = {:.2}x ({:.1} ms vs {:.1} ms per 4000-evaluation trial)",
+                    t1 / t5,
+                    t1 / 1e6,
+                    t5 / 1e6
+                ));
+            }
         }
     }
     if let (Some(s), Some(t)) = (
