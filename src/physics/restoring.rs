@@ -27,6 +27,7 @@
 
 use rustfft::FftPlanner;
 use rustfft::num_complex::Complex;
+use std::sync::{Arc, Mutex};
 
 /// How the input moves between its samples.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -114,7 +115,7 @@ pub fn upsample(x: &[f64], hold: Hold, substeps: usize) -> Fine {
         }
         Hold::Bandlimited => {
             let f = 2 * m;
-            let dense = fft_interpolate(x, f);
+            let dense = dense_cached(x, f);
             for k in 1..n {
                 values.extend_from_slice(&dense[(k - 1) * f..=(k - 1) * f + 2 * m]);
             }
@@ -125,6 +126,49 @@ pub fn upsample(x: &[f64], hold: Hold, substeps: usize) -> Fine {
         substeps: m,
         len: n,
     }
+}
+
+/// Interpolations recently computed, newest first: a fit evaluates thousands of parameter
+/// sets on the same input, and each sub-step count needs its own (an FFT plan, two
+/// transforms and a large allocation that otherwise dominate an evaluation).
+type DenseCache = Mutex<Vec<(Arc<Vec<f64>>, usize, Arc<Vec<f64>>)>>;
+static DENSE: DenseCache = Mutex::new(Vec::new());
+const DENSE_ENTRIES: usize = 8;
+/// Values kept in all (128 MB); the newest entry stays whatever its size.
+const DENSE_VALUES: usize = 1 << 24;
+
+/// [`fft_interpolate`] through a small process-wide cache keyed by the input's values and
+/// the factor (the same bits as computing it: the cache only skips the work).
+fn dense_cached(x: &[f64], factor: usize) -> Arc<Vec<f64>> {
+    let lookup = |cache: &mut Vec<(Arc<Vec<f64>>, usize, Arc<Vec<f64>>)>| {
+        let i = cache
+            .iter()
+            .position(|(k, f, _)| *f == factor && same_bits(k, x))?;
+        let hit = cache.remove(i);
+        let dense = Arc::clone(&hit.2);
+        cache.insert(0, hit);
+        Some(dense)
+    };
+    if let Some(d) = lookup(&mut DENSE.lock().unwrap_or_else(|e| e.into_inner())) {
+        return d;
+    }
+    // Computed outside the lock: threads may race to the same entry, with the same values.
+    let dense = Arc::new(fft_interpolate(x, factor));
+    let mut cache = DENSE.lock().unwrap_or_else(|e| e.into_inner());
+    if lookup(&mut cache).is_none() {
+        cache.insert(0, (Arc::new(x.to_vec()), factor, Arc::clone(&dense)));
+        cache.truncate(DENSE_ENTRIES);
+        while cache.len() > 1
+            && cache.iter().map(|e| e.0.len() + e.2.len()).sum::<usize>() > DENSE_VALUES
+        {
+            cache.pop();
+        }
+    }
+    dense
+}
+
+fn same_bits(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
 }
 
 /// `x` interpolated `factor` times more densely as the periodic band-limited signal through
@@ -294,6 +338,37 @@ mod tests {
         let x: Vec<f64> = (0..63).map(|k| f(k as f64 / 63.0)).collect();
         let d = fft_interpolate(&x, 4);
         assert!((d[5] - f(5.0 / 252.0)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn cached_interpolation_is_the_computed_one_through_hits_and_evictions() {
+        // More distinct (input, factor) pairs than the cache holds, so the second round
+        // recomputes what was evicted; every pair is asked for twice in a row (a hit).
+        let inputs: Vec<Vec<f64>> = (0..6)
+            .map(|s| {
+                (0..97)
+                    .map(|k| ((k * (s + 3)) as f64 * 0.37).sin())
+                    .collect()
+            })
+            .collect();
+        for round in 0..2 {
+            for (i, x) in inputs.iter().enumerate() {
+                for factor in [4, 6] {
+                    let want = fft_interpolate(x, factor);
+                    // The first call computes (or hits), the second hits.
+                    for call in 0..2 {
+                        let got = dense_cached(x, factor);
+                        assert_eq!(got.len(), want.len());
+                        assert!(
+                            got.iter()
+                                .zip(&want)
+                                .all(|(a, b)| a.to_bits() == b.to_bits()),
+                            "round {round} input {i} factor {factor} call {call}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     #[test]
