@@ -131,8 +131,8 @@ pub fn upsample(x: &[f64], hold: Hold, substeps: usize) -> Fine {
 /// Interpolations recently computed, newest first: a fit evaluates thousands of parameter
 /// sets on the same input, and each sub-step count needs its own (an FFT plan, two
 /// transforms and a large allocation that otherwise dominate an evaluation).
-type DenseCache = Mutex<Vec<(Arc<Vec<f64>>, usize, Arc<Vec<f64>>)>>;
-static DENSE: DenseCache = Mutex::new(Vec::new());
+type DenseEntries = Vec<(Arc<Vec<f64>>, usize, Arc<Vec<f64>>)>;
+static DENSE: Mutex<DenseEntries> = Mutex::new(Vec::new());
 const DENSE_ENTRIES: usize = 8;
 /// Values kept in all (128 MB); the newest entry stays whatever its size.
 const DENSE_VALUES: usize = 1 << 24;
@@ -140,7 +140,7 @@ const DENSE_VALUES: usize = 1 << 24;
 /// [`fft_interpolate`] through a small process-wide cache keyed by the input's values and
 /// the factor (the same bits as computing it: the cache only skips the work).
 fn dense_cached(x: &[f64], factor: usize) -> Arc<Vec<f64>> {
-    let lookup = |cache: &mut Vec<(Arc<Vec<f64>>, usize, Arc<Vec<f64>>)>| {
+    let lookup = |cache: &mut DenseEntries| {
         let i = cache
             .iter()
             .position(|(k, f, _)| *f == factor && same_bits(k, x))?;
