@@ -38,11 +38,10 @@
 //! each membrane its evaluations two rounds ahead, the membrane evolves and evaluates on its
 //! thread, reports back, and exchanges migrants with its neighbours directly over channels.
 //! No coordinator round is a barrier: a membrane waits only for its neighbours' migrants.
-//! With the seed's rule that still couples neighbours every step, so five membranes on two
-//! cores run close to lockstep (at most 5/3 = 1.67x over one thread); with
-//! `migration_lag = 1` a membrane that finishes a step early starts its next one at once
-//! and only waits if a neighbour has not yet finished the step before, which keeps two
-//! cores busy. Results stay deterministic either way: each membrane draws only from its own
+//! With the seed's rule that still couples neighbours every step, so membranes drift at
+//! most the tree's diameter apart; with `migration_lag = 1` a membrane that finishes a
+//! step early starts its next one at once and only waits if a neighbour has not yet
+//! finished the step before, which keeps two cores busier. Results stay deterministic either way: each membrane draws only from its own
 //! stream, each edge's channel carries exactly one message per step in order (so "the step
 //! `t - lag` message" is a fixed message, whenever it arrives), grant quotas depend on
 //! counts only, and the coordinator commits the evaluations in round and membrane order;
