@@ -41,12 +41,13 @@
 //! With the seed's rule that still couples neighbours every step, so membranes drift at
 //! most the tree's diameter apart; with `migration_lag = 1` a membrane that finishes a
 //! step early starts its next one at once and only waits if a neighbour has not yet
-//! finished the step before, which keeps two cores busier. Results stay deterministic either way: each membrane draws only from its own
-//! stream, each edge's channel carries exactly one message per step in order (so "the step
-//! `t - lag` message" is a fixed message, whenever it arrives), grant quotas depend on
-//! counts only, and the coordinator commits the evaluations in round and membrane order;
-//! results are bit-identical to the single-thread driver (`threads = false`, same lag) and
-//! independent of scheduling (tested with random pauses).
+//! finished the step before, which keeps two cores busier. Results stay deterministic
+//! either way: each membrane draws only from its own stream, each edge's channel carries
+//! exactly one message per step in order (so "the step `t - lag` message" is a fixed
+//! message, whenever it arrives), grant quotas depend on counts only, and the coordinator
+//! commits the evaluations in round and membrane order; results are bit-identical to the
+//! single-thread driver (`threads = false`, same lag) and independent of scheduling
+//! (tested with random pauses).
 
 use super::operators::{Mutation, Roulette, arithmetic_crossover, ranking};
 use super::{Optimizer, OptimizerConfig};
@@ -322,7 +323,8 @@ impl Optimizer for Sequential {
 }
 
 /// Rounds granted beyond the one being collected: membranes may drift this far apart
-/// (neighbours stay within `migration_lag` steps of each other through the migrants).
+/// (a membrane also stays within `migration_lag + 1` steps of each neighbour, whose
+/// migrants it waits for).
 const AHEAD: usize = 2;
 
 /// One OS thread per membrane; the coordinator only grants and commits evaluations.
