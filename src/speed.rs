@@ -115,13 +115,19 @@ impl BenchConfig {
 /// Median wall time in seconds of `repeats` runs of `f` (after one warm-up run).
 fn time(repeats: usize, mut f: impl FnMut()) -> f64 {
     f();
-    let mut t: Vec<f64> = (0..repeats.max(1))
-        .map(|_| {
-            let s = Instant::now();
-            f();
-            s.elapsed().as_secs_f64()
-        })
-        .collect();
+    median(
+        (0..repeats.max(1))
+            .map(|_| {
+                let s = Instant::now();
+                f();
+                s.elapsed().as_secs_f64()
+            })
+            .collect(),
+    )
+}
+
+/// The middle value (the upper one of an even count).
+fn median(mut t: Vec<f64>) -> f64 {
     t.sort_by(f64::total_cmp);
     t[t.len() / 2]
 }
@@ -423,12 +429,10 @@ fn msga_threads(cfg: &BenchConfig, migration_lag: usize) -> f64 {
     };
     run(false);
     run(true);
-    let (mut one, mut five): (Vec<f64>, Vec<f64>) = (0..cfg.repeats.clamp(3, 5))
+    let (one, five): (Vec<f64>, Vec<f64>) = (0..cfg.repeats.clamp(3, 5))
         .map(|_| (run(false), run(true)))
         .unzip();
-    one.sort_by(f64::total_cmp);
-    five.sort_by(f64::total_cmp);
-    one[one.len() / 2] / five[five.len() / 2]
+    median(one) / median(five)
 }
 
 impl BenchReport {
