@@ -1,17 +1,11 @@
 //! The `optbench` binary: a tiny suite end to end, and bad input rejected with a located
 //! message, exit code 2 and nothing written.
 
+mod common;
+
+use common::{optbench, run_shipped_suite};
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn optbench(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_optbench"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("run optbench")
-}
 
 const TINY: &str = r#"name = "tiny"
 seed = 3
@@ -299,19 +293,7 @@ fn shipped_suites_are_valid() {
 fn main_suite_runs_end_to_end_at_small_size() {
     // The README's first command, with every optimizer of the shipped suite (the polished
     // MSGA included) at a budget that spans several MSGA rounds past the polish switch.
-    let dir = tempfile::tempdir().unwrap();
-    let suite = concat!(env!("CARGO_MANIFEST_DIR"), "/suites/functions.toml");
-    let out = optbench(
-        &[
-            "run", suite, "--trials", "2", "--budget", "2000", "--out", "r", "-q",
-        ],
-        dir.path(),
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let dir = run_shipped_suite("functions", "2", "2000");
     let summary: Value =
         serde_json::from_slice(&std::fs::read(dir.path().join("r/summary.json")).unwrap()).unwrap();
     let text = summary.to_string();

@@ -1,17 +1,11 @@
 //! `optbench control` end to end: a run's files, a diverging run reported as a result, and
 //! bad input refused with exit code 2 and nothing written.
 
+mod common;
+
+use common::optbench;
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn optbench(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_optbench"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("run optbench")
-}
 
 fn summary(dir: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()

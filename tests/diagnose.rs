@@ -2,9 +2,10 @@
 //! every case on 4 s twin records), reproducibility across thread counts, and the command
 //! on CSV files (outputs, refusals). The full proof is `optbench diagnose --proof`.
 
+mod common;
+
+use common::optbench;
 use optbench::diagnose::{Options, diagnose, proof};
-use std::path::Path;
-use std::process::{Command, Output};
 
 fn opts(seed: u64) -> Options {
     Options {
@@ -73,14 +74,6 @@ fn every_concealed_effect_is_named_and_the_null_case_raises_no_alarm() {
     let (t, v) = proof::generate(kind, 1, 4.0).unwrap();
     let again = pool(1).install(|| diagnose(&t, &v, &opts(1))).unwrap();
     assert_eq!(json_without_time(&again), json_without_time(delay));
-}
-
-fn optbench(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_optbench"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .unwrap()
 }
 
 #[test]

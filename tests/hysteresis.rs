@@ -1,6 +1,9 @@
 //! Hysteresis fitting: parameter recovery on twin data, the seed's numerical example,
 //! finite costs for hostile parameters, and the shipped suites end to end at small size.
 
+mod common;
+
+use common::{optbench, run_shipped_suite};
 use optbench::harness::{TrialSeed, TrialSpec, run_trial};
 use optbench::objective::Objective;
 use optbench::objective::fit::{BoucWenFit, RbfFit};
@@ -12,7 +15,6 @@ use optbench::physics::rbf::{Mode, Narx, RbfNet};
 use optbench::physics::twin::TwinConfig;
 use optbench::recording::{Recording, data_dir};
 use std::path::Path;
-use std::process::Command;
 use std::sync::Arc;
 
 fn twin(signal: &str, duration: f64, overrides: &str) -> Recording {
@@ -226,29 +228,9 @@ fn penalised_evaluations_are_counted() {
     assert!(ok.evaluate(&[0.15, 0.05, 0.5, 0.2, 1.0]) < cap);
 }
 
-fn optbench(args: &[&str], cwd: &Path) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_optbench"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .unwrap()
-}
-
 #[test]
 fn hysteresis_suite_runs_end_to_end_at_small_size() {
-    let dir = tempfile::tempdir().unwrap();
-    let suite = concat!(env!("CARGO_MANIFEST_DIR"), "/suites/hysteresis.toml");
-    let out = optbench(
-        &[
-            "run", suite, "--trials", "2", "--budget", "300", "--out", "r", "-q",
-        ],
-        dir.path(),
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let dir = run_shipped_suite("hysteresis", "2", "300");
     let report = std::fs::read_to_string(dir.path().join("r/report.md")).unwrap();
     for t in [
         "Table 3.2",
@@ -279,19 +261,7 @@ fn real_data_suites_run_end_to_end_at_small_size() {
         return;
     }
     for name in ["boucwen-benchmark", "mr-damper"] {
-        let dir = tempfile::tempdir().unwrap();
-        let suite = format!("{}/suites/{name}.toml", env!("CARGO_MANIFEST_DIR"));
-        let out = optbench(
-            &[
-                "run", &suite, "--trials", "1", "--budget", "60", "--out", "r", "-q",
-            ],
-            dir.path(),
-        );
-        assert!(
-            out.status.success(),
-            "{name}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        let dir = run_shipped_suite(name, "1", "60");
         let report = std::fs::read_to_string(dir.path().join("r/report.md")).unwrap();
         assert!(report.contains("RMSE"), "{name}");
     }

@@ -2,20 +2,15 @@
 //! and its summary compared with an uninterrupted run's; shards of several sizes merged
 //! and compared the same way.
 
+mod common;
+
+use common::optbench;
 use serde_json::Value;
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 const BIN: &str = env!("CARGO_BIN_EXE_optbench");
-
-fn optbench(args: &[&str], cwd: &Path) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("run optbench")
-}
 
 fn ok(out: &Output) {
     assert!(

@@ -4,6 +4,8 @@
 use optbench::objective::functions::{Function, TestFunction};
 use optbench::objective::{Bounds, Objective};
 use std::collections::BTreeSet;
+use std::path::Path;
+use std::process::{Command, Output};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -67,4 +69,31 @@ impl Objective for Probe {
 pub fn without_time(mut r: optbench::harness::TrialRecord) -> optbench::harness::TrialRecord {
     r.wall_s = 0.0;
     r
+}
+
+/// Runs the `optbench` binary with `args` in `cwd`.
+pub fn optbench(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_optbench"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .expect("run optbench")
+}
+
+/// `optbench run suites/<name>.toml` at small size into `<tempdir>/r`, which must succeed.
+pub fn run_shipped_suite(name: &str, trials: &str, budget: &str) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    let suite = format!("{}/suites/{name}.toml", env!("CARGO_MANIFEST_DIR"));
+    let out = optbench(
+        &[
+            "run", &suite, "--trials", trials, "--budget", budget, "--out", "r", "-q",
+        ],
+        dir.path(),
+    );
+    assert!(
+        out.status.success(),
+        "{name}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    dir
 }
