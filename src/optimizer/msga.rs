@@ -450,8 +450,8 @@ impl Optimizer for Threaded {
         commit_round(ev);
         self.open -= 1;
         if ev.done() {
-            // The rounds granted ahead come after the end: committed, they count nothing
-            // and release their reservations.
+            // Stopped early (a stop value reached): the rounds granted ahead come after the
+            // end; committed, they count nothing and release their reservations.
             while self.open > 0 {
                 commit_round(ev);
                 self.open -= 1;

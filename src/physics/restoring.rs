@@ -283,27 +283,21 @@ impl Oscillator {
         out.push(y);
         let m = fine.substeps;
         let h = dt / m as f64;
+        let half_h = 0.5 * h;
         let bound = 1e6;
         for k in 1..n {
             let xs = fine.interval(k);
             for j in 0..m {
                 let (x_a, x_m, x_b) = (xs[2 * j], xs[2 * j + 1], xs[2 * j + 2]);
-                let (k1y, k1v, k1g) = self.rate(power, x_a, y, v, g);
-                let (k2y, k2v, k2g) = self.rate(
-                    power,
-                    x_m,
-                    y + 0.5 * h * k1y,
-                    v + 0.5 * h * k1v,
-                    g + 0.5 * h * k1g,
-                );
-                let (k3y, k3v, k3g) = self.rate(
-                    power,
-                    x_m,
-                    y + 0.5 * h * k2y,
-                    v + 0.5 * h * k2v,
-                    g + 0.5 * h * k2g,
-                );
-                let (k4y, k4v, k4g) = self.rate(power, x_b, y + h * k3y, v + h * k3v, g + h * k3g);
+                // The rate at the state advanced by `c` times the slopes `k`.
+                let ahead = |x: f64, c: f64, k: (f64, f64, f64)| {
+                    self.rate(power, x, y + c * k.0, v + c * k.1, g + c * k.2)
+                };
+                let k1 = self.rate(power, x_a, y, v, g);
+                let k2 = ahead(x_m, half_h, k1);
+                let k3 = ahead(x_m, half_h, k2);
+                let (k4y, k4v, k4g) = ahead(x_b, h, k3);
+                let ((k1y, k1v, k1g), (k2y, k2v, k2g), (k3y, k3v, k3g)) = (k1, k2, k3);
                 y += h / 6.0 * (k1y + 2.0 * k2y + 2.0 * k3y + k4y);
                 v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
                 g += h / 6.0 * (k1g + 2.0 * k2g + 2.0 * k3g + k4g);
