@@ -63,11 +63,18 @@ fn every_concealed_effect_is_named_and_the_null_case_raises_no_alarm() {
     assert!(delay.baseline.p_value <= 0.05 && !delay.located.is_empty());
     let c = delay.candidates.iter().find(|c| c.accepted).unwrap();
     assert!(c.delta_bic < -10.0 && c.validate_rmse < delay.baseline.validate_band[0]);
-    let d = c.params["delay_s"];
+    // The delay is the effect plus the sub-sample timing the baseline attributes to the
+    // recording set-up (up to half a sample later).
+    let d = c.params["delay_s"] + c.params["timing_offset_s"];
     assert!((d - 1e-3).abs() < 1e-4, "delay {d}");
+    assert!(c.params["delay_s"] >= 0.5e-3 - 1e-4, "{:?}", c.params);
+    assert_eq!(c.transfer.split(':').next(), Some("actuator"));
     let dynamics = get("dynamics-seed1");
     let f = dynamics.final_model.params["mode_freq_hz"];
-    assert!((f - 250.0).abs() < 10.0, "mode at {f} Hz");
+    assert!((f - 220.0).abs() < 10.0, "mode at {f} Hz");
+    // The null case attributes a sub-sample timing and its offsets to the set-up.
+    assert!(null.nuisances.contains_key("timing_offset_s"));
+    assert!(null.nuisances.contains_key("offset_validate"));
 
     // Same seed, one thread: the same diagnosis, number for number.
     let kind = kinds.iter().find(|k| k.name() == "delay").unwrap();
@@ -138,15 +145,25 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
     for key in ["train_rmse", "validate_rmse", "params"] {
         assert!(json["baseline"].get(key).is_some() && json["final"].get(key).is_some());
     }
-    // Dynamics is tried in both placements in the first round.
-    let placements: Vec<&str> = json["candidates"]
+    // Dynamics is tried in both placements in the first round, each of its forms after
+    // the hysteresis and one mode in the feedback loop.
+    let dynamics: Vec<(&str, &str)> = json["candidates"]
         .as_array()
         .unwrap()
         .iter()
         .filter(|c| c["name"] == "dynamics" && c["round"] == 1)
-        .map(|c| c["placement"].as_str().unwrap())
+        .map(|c| {
+            (
+                c["placement"].as_str().unwrap(),
+                c["form"].as_str().unwrap(),
+            )
+        })
         .collect();
-    assert_eq!(placements, ["after-hysteresis", "feedback"]);
+    assert!(
+        dynamics.contains(&("after-hysteresis", "one-mode")),
+        "{dynamics:?}"
+    );
+    assert!(dynamics.contains(&("feedback", "one-mode")), "{dynamics:?}");
     // Test records: free run from the input alone, both models, finite; on the validation
     // record (from rest, its initial state not fitted) close to the diagnosis's own figure.
     let tests = json["tests"].as_array().unwrap();

@@ -31,7 +31,7 @@ pub mod residual;
 use crate::error::{Error, Result};
 use crate::harness::TrialSeed;
 use crate::optimizer::operators::standard_normal;
-use crate::physics::structure::{Context, Effect, Hold, Placement, Structure};
+use crate::physics::structure::{Context, Effect, Form, Hold, Placement, Structure};
 use crate::recording::Recording;
 use fit::{Budget, Fitted};
 use rand::RngExt;
@@ -63,8 +63,10 @@ pub struct Options {
     /// Budget of a candidate in a new placement (not nested: its oscillator and loop shape
     /// are searched afresh, the global stage on the first samples only).
     pub placement_budget: Budget,
-    /// At most this many extensions are accepted.
+    /// At most this many rounds of extensions.
     pub max_rounds: usize,
+    /// When no single candidate passes: pairs of this many best singles are tried.
+    pub pair_pool: usize,
     /// How the input moves between samples (for the feedback placement's integrator).
     pub hold: Hold,
     /// Offer `dynamics` with the hysteresis inside the mechanical feedback too.
@@ -105,6 +107,7 @@ impl Default for Options {
                 global_window: 4096,
             },
             max_rounds: 4,
+            pair_pool: 3,
             hold: Hold::Zoh,
             feedback: true,
             validate_periodic: false,
@@ -144,10 +147,15 @@ pub struct ModelSummary {
     pub evaluations: u64,
 }
 
-/// One nested refit.
+/// One nested refit: an effect in one form, or a pair of effects (`name` `a+b`).
 #[derive(Clone, Debug, Serialize)]
 pub struct Candidate {
     pub name: String,
+    /// The functional form (`a+b` for a pair), e.g. `smooth` for a saturation.
+    pub form: String,
+    /// `actuator` (parameters carried to the validation record) or `per-record`
+    /// (refitted on every record, like a sensor's drift).
+    pub transfer: String,
     /// For `dynamics`: `after-hysteresis` or `feedback` (hysteresis inside the mechanical
     /// feedback, a restoring force).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -159,8 +167,14 @@ pub struct Candidate {
     pub delta_bic: f64,
     pub train_rmse: f64,
     pub validate_rmse: f64,
+    /// Evidence on the validation record (`N ln(SSE/N) + k ln N`, `k` the coefficients
+    /// refitted there); among passing candidates the lowest wins.
+    pub validate_ic: f64,
     pub score: f64,
     pub accepted: bool,
+    /// Accepted, then removed by the backward step (the final model no longer needs it).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub dropped: bool,
     pub params: BTreeMap<String, f64>,
     pub evidence: String,
 }
@@ -182,6 +196,10 @@ pub struct Diagnosis {
     pub left_out: Vec<String>,
     #[serde(rename = "final")]
     pub final_model: ModelSummary,
+    /// What the final model attributes to the recording set-up, not to the actuator: the
+    /// input's sub-sample timing (`timing_offset_s`, from the inter-sample convention and
+    /// where the sensor samples) and each record's own sensor offset.
+    pub nuisances: BTreeMap<String, f64>,
     /// Structure left in the final residual that no candidate explains.
     pub unexplained: bool,
     /// Half the training record's noise floor: residual structure smaller than this is
@@ -210,10 +228,12 @@ impl Diagnosis {
     pub fn accepted_labels(&self) -> Vec<String> {
         self.candidates
             .iter()
-            .filter(|c| c.accepted)
-            .map(|c| match c.placement.as_deref() {
-                Some("feedback") => format!("{}(feedback)", c.name),
-                _ => c.name.clone(),
+            .filter(|c| c.accepted && !c.dropped)
+            .flat_map(|c| {
+                c.name.split('+').map(|n| match c.placement.as_deref() {
+                    Some("feedback") if n == "dynamics" => format!("{n}(feedback)"),
+                    _ => n.to_string(),
+                })
             })
             .collect()
     }
@@ -265,8 +285,9 @@ struct Data {
 impl Data {
     /// `f`'s output on the validation input (recorded output `yv`, used only for the
     /// record's own initial state); a periodic record is simulated over two periods and the
-    /// second returned, so no start-up transient is scored. Also the evaluations used.
-    fn validation_output(&self, f: &Fitted, yv: &[f64], seed: u64) -> (Vec<f64>, u64) {
+    /// second returned, so no start-up transient is scored. Also the evaluations used and
+    /// the coefficients with the record's own ones (offset, drift, creep states) refitted.
+    fn validation_output(&self, f: &Fitted, yv: &[f64], seed: u64) -> (Vec<f64>, u64, Vec<f64>) {
         let twice = |v: &[f64]| -> Vec<f64> { v.iter().chain(v).copied().collect() };
         let (u, y) = if self.periodic {
             (twice(&self.uv), twice(yv))
@@ -274,8 +295,8 @@ impl Data {
             (self.uv.clone(), yv.to_vec())
         };
         let (theta, used) = fit::initial_state_for(f, &u, &y, 60, seed);
-        let (out, _) = f.structure.simulate_on(&theta, &f.linear.coef, &u, &y);
-        (out[out.len() - self.uv.len()..].to_vec(), used)
+        let (out, coef) = f.structure.simulate_on(&theta, &f.linear.coef, &u, &y);
+        (out[out.len() - self.uv.len()..].to_vec(), used, coef)
     }
 }
 
@@ -319,28 +340,40 @@ fn rmse_band(e: &[f64], seed: u64, label: &str) -> [f64; 2] {
 }
 
 /// Residuals and battery of a fitted model on the validation data.
+#[derive(Clone)]
 struct Evaluated {
     fitted: Fitted,
     out_t: Vec<f64>,
     out_v: Vec<f64>,
+    /// Coefficients on the validation record (its own offset, drift and creep states).
+    coef_v: Vec<f64>,
     validate_rmse: f64,
+    /// Evidence on the validation record: `N ln(SSE/N) + k ln N`, `k` the coefficients
+    /// refitted on it (its own offset, drift, initial states), so a per-record effect pays
+    /// for what it fits there and an actuator effect must predict.
+    validate_ic: f64,
     tests: Vec<TestResult>,
     score: f64,
 }
 
 fn evaluate(mut f: Fitted, d: &Data, opts: &Options) -> Evaluated {
     let (out_t, _) = f.structure.simulate(&f.theta, &f.linear.coef, &d.ut);
-    let (out_v, used) = d.validation_output(&f, &d.yv, opts.seed);
+    let (out_v, used, coef_v) = d.validation_output(&f, &d.yv, opts.seed);
     f.evaluations += used;
     let ev: Vec<f64> = d.yv.iter().zip(&out_v).map(|(a, b)| a - b).collect();
     let tests = residual::battery(&d.uv, &ev, opts.lags, opts.alpha);
+    let n = ev.len().max(1) as f64;
+    let sse = ev.iter().map(|e| e * e).sum::<f64>().max(1e-300);
+    let refitted = f.structure.record_coefs().len() + 1;
     Evaluated {
         validate_rmse: residual::rms(&ev),
+        validate_ic: n * (sse / n).ln() + refitted as f64 * n.ln(),
         score: residual::score(&tests),
         tests,
         fitted: f,
         out_t,
         out_v,
+        coef_v,
     }
 }
 
@@ -379,7 +412,7 @@ fn summary(e: &Evaluated, d: &Data, boot: &[f64], seed: u64) -> ModelSummary {
 fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> (Vec<f64>, u64) {
     let st = &base.structure;
     let (mt, _) = st.simulate(&base.theta, &base.linear.coef, &d.ut);
-    let (mv, _) = d.validation_output(base, &d.yv, opts.seed);
+    let (mv, _, _) = d.validation_output(base, &d.yv, opts.seed);
     let runs: Vec<(f64, u64)> = (0..opts.bootstrap)
         .into_par_iter()
         .map(|b| {
@@ -408,7 +441,7 @@ fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> (Vec
                 },
                 opts.seed ^ (0xb00 + b as u64),
             );
-            let (ov, used) = d.validation_output(&refit, &yv, opts.seed);
+            let (ov, used, _) = d.validation_output(&refit, &yv, opts.seed);
             let ev: Vec<f64> = yv.iter().zip(&ov).map(|(a, b)| a - b).collect();
             let score = residual::score(&residual::battery(&d.uv, &ev, opts.lags, opts.alpha));
             (score, refit.evaluations + used)
@@ -419,24 +452,196 @@ fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> (Vec
     (scores, runs.iter().map(|r| r.1).sum())
 }
 
-/// The extensions a round tries on `parent`: every effect not yet in it, and `dynamics`
-/// in both placements (after the hysteresis, and around it as a restoring force) while
-/// the model has none. Once the hysteresis sits in the feedback loop, `rate-dependence` is
-/// not offered (see [`Structure::placed`]).
-fn candidate_pool(parent: &Structure, opts: &Options) -> Vec<(Effect, Placement)> {
+/// An extension tried on a parent model: one effect in one form (or a richer form of an
+/// effect it has), or a pair, with `dynamics` at a placement.
+#[derive(Clone, Debug, PartialEq)]
+struct Proposal {
+    parts: Vec<(Effect, Form)>,
+    placement: Placement,
+}
+
+impl Proposal {
+    fn name(&self) -> String {
+        self.parts
+            .iter()
+            .map(|p| p.0.name())
+            .collect::<Vec<_>>()
+            .join("+")
+    }
+
+    fn form(&self) -> String {
+        self.parts
+            .iter()
+            .map(|p| p.1.name())
+            .collect::<Vec<_>>()
+            .join("+")
+    }
+
+    fn effects(&self) -> Vec<Effect> {
+        self.parts.iter().map(|p| p.0).collect()
+    }
+}
+
+/// The extensions a round tries on `parent`: every effect not yet in it in each of its
+/// forms, `dynamics` in both placements (after the hysteresis, and around it as a
+/// restoring force) while the model has none, and two modes where it has one. Once the
+/// hysteresis sits in the feedback loop, `rate-dependence` and the direction form of
+/// `asymmetry` are not offered (see [`Structure::with_forms`]).
+fn candidate_pool(parent: &Structure, opts: &Options) -> Vec<Proposal> {
     let mut pool = Vec::new();
+    let here = parent.placement();
     for &e in &opts.effects {
-        if parent.has(e)
-            || (parent.placement() == Placement::Feedback && e == Effect::RateDependence)
-        {
+        if parent.has(e) {
+            if e == Effect::Dynamics
+                && here == Placement::After
+                && parent.form(e) == Some(Form::OneMode)
+            {
+                pool.push(Proposal {
+                    parts: vec![(e, Form::TwoModes)],
+                    placement: here,
+                });
+            }
             continue;
         }
-        pool.push((e, parent.placement()));
-        if e == Effect::Dynamics && opts.feedback {
-            pool.push((e, Placement::Feedback));
+        if here == Placement::Feedback && e == Effect::RateDependence {
+            continue;
+        }
+        for &f in e.forms() {
+            if here == Placement::Feedback && f == Form::Direction {
+                continue;
+            }
+            pool.push(Proposal {
+                parts: vec![(e, f)],
+                placement: here,
+            });
+        }
+        if e == Effect::Dynamics && opts.feedback && here == Placement::After {
+            pool.push(Proposal {
+                parts: vec![(e, Form::OneMode)],
+                placement: Placement::Feedback,
+            });
         }
     }
     pool
+}
+
+/// Fits proposal `p` on top of `parent`: the parent's parameters carried over, the new
+/// effects' searched (started from `seeds`' values where given, e.g. the singles of a
+/// pair), then everything polished. A new placement is not nested: its oscillator and
+/// loop shape are searched afresh.
+fn fit_proposal(
+    parent: &Fitted,
+    p: &Proposal,
+    seeds: &[&Fitted],
+    d: &Data,
+    opts: &Options,
+    round: usize,
+) -> Evaluated {
+    let moved = p.placement != parent.structure.placement();
+    let mut st = parent.structure.with_placement(p.placement);
+    for &(e, f) in &p.parts {
+        st = st.extended_with(e, f);
+    }
+    let mut start = parent.structure.embed(&parent.theta, &st);
+    for s in seeds {
+        for (i, spec) in st.specs().iter().enumerate() {
+            if spec.effect.is_some_and(|e| p.effects().contains(&e))
+                && let Some(j) = s.structure.specs().iter().position(|x| x.name == spec.name)
+            {
+                start[i] = s.theta[j];
+            }
+        }
+    }
+    let free: Vec<usize> = st
+        .specs()
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| {
+            s.effect.is_some_and(|e| p.effects().contains(&e)) || (moved && s.effect.is_none())
+        })
+        .map(|(i, _)| i)
+        .collect();
+    let budget = if moved {
+        opts.placement_budget
+    } else if !seeds.is_empty() {
+        // Started at the singles' optima: a polish suffices.
+        Budget {
+            global: 0,
+            ..opts.candidate_budget
+        }
+    } else {
+        opts.candidate_budget
+    };
+    let f = fit::fit(
+        &st,
+        &d.ut,
+        &d.yt,
+        Some(&start),
+        Some(&free),
+        budget,
+        opts.seed.wrapping_add(round as u64),
+    );
+    evaluate(f, d, opts)
+}
+
+/// The gate of one candidate against its parent, and the evidence line.
+struct Verdict {
+    delta_bic: f64,
+    passed: bool,
+    evidence: String,
+}
+
+fn judge(
+    c: &Evaluated,
+    parent: &Evaluated,
+    band: [f64; 2],
+    margin: f64,
+    nt: usize,
+    unit: &str,
+) -> Verdict {
+    let delta = bic(&c.fitted, nt) - bic(&parent.fitted, nt);
+    let bic_ok = delta < -margin;
+    let band_ok = c.validate_rmse < band[0];
+    let white_ok = c.score < parent.score;
+    let mark = |b: bool| if b { "yes" } else { "no" };
+    let fmt = |x: f64| crate::report::table::sig(x, 3);
+    Verdict {
+        delta_bic: delta,
+        passed: bic_ok && band_ok && white_ok,
+        evidence: format!(
+            "ΔBIC {} (needs < -{}: {}); validation RMSE {} vs parent band [{}, {}] {unit} ({}); residual score {} -> {} ({}); validation evidence {} (parent {})",
+            fmt(delta),
+            margin,
+            mark(bic_ok),
+            fmt(c.validate_rmse),
+            fmt(band[0]),
+            fmt(band[1]),
+            mark(band_ok),
+            fmt(parent.score),
+            fmt(c.score),
+            mark(white_ok),
+            fmt(c.validate_ic),
+            fmt(parent.validate_ic),
+        ),
+    }
+}
+
+/// How a proposal's parameters reach another record.
+fn transfer(p: &Proposal) -> String {
+    let per: Vec<&str> = p
+        .parts
+        .iter()
+        .filter(|x| x.0.per_record())
+        .map(|x| x.0.name())
+        .collect();
+    if per.is_empty() {
+        "actuator: parameters carried to the validation record unchanged".into()
+    } else {
+        format!(
+            "per-record: {} refitted on the validation record",
+            per.join(", ")
+        )
+    }
 }
 
 /// RMSE of `f` simulated on `t`'s input alone: initial hysteretic and creep states at rest
@@ -447,9 +652,14 @@ fn free_run(f: &Fitted, t: &TestSet) -> f64 {
     if let Some(i) = st.specs().iter().position(|s| s.name == "g0_frac") {
         theta[i] = 0.0;
     }
+    // The record's own drift and creep states are unknown from its input alone: zero (at
+    // rest); the offset stays the training's.
     let mut coef = f.linear.coef.clone();
-    for j in st.initial_state_coefs() {
-        coef[j] = 0.0;
+    let names = st.linear_names();
+    for j in st.record_coefs() {
+        if names[j] != "d0" {
+            coef[j] = 0.0;
+        }
     }
     let r = &t.recording;
     let u: Vec<f64> = if t.periodic {
@@ -597,7 +807,10 @@ pub fn diagnose_with_tests(
     let mut candidates = Vec::new();
     let mut left_out = Vec::new();
     let nt = d.ut.len();
-    for round in 1..=opts.max_rounds {
+    let threshold = boot.last().copied().unwrap_or(1.0).max(1.0);
+    let mut round = 0;
+    while round < opts.max_rounds {
+        round += 1;
         let parent = current.fitted.structure.clone();
         let pool = candidate_pool(&parent, opts);
         if pool.is_empty() {
@@ -605,83 +818,167 @@ pub fn diagnose_with_tests(
         }
         let tried: Vec<Evaluated> = pool
             .par_iter()
-            .map(|&(e, placement)| {
-                let moved = placement != parent.placement();
-                let st = parent.extended(e).with_placement(placement);
-                let start = parent.embed(&current.fitted.theta, &st);
-                // A nested candidate searches its own parameters; a new placement is not
-                // nested, so its oscillator and loop shape are searched afresh.
-                let free: Vec<usize> = st
-                    .specs()
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, s)| s.effect == Some(e) || (moved && s.effect.is_none()))
-                    .map(|(i, _)| i)
-                    .collect();
-                let budget = if moved {
-                    opts.placement_budget
-                } else {
-                    opts.candidate_budget
-                };
+            .map(|p| fit_proposal(&current.fitted, p, &[], &d, opts, round))
+            .collect();
+        let band = current_summary.validate_band;
+        let mut record = |p: &Proposal, c: &Evaluated, v: &Verdict, candidates: &mut Vec<_>| {
+            evaluations += c.fitted.evaluations;
+            candidates.push(Candidate {
+                name: p.name(),
+                form: p.form(),
+                transfer: transfer(p),
+                placement: p
+                    .effects()
+                    .contains(&Effect::Dynamics)
+                    .then(|| p.placement.name().to_string()),
+                round,
+                parent: parent.label(),
+                delta_bic: v.delta_bic,
+                train_rmse: c.fitted.rmse(nt),
+                validate_rmse: c.validate_rmse,
+                validate_ic: c.validate_ic,
+                score: c.score,
+                accepted: false,
+                dropped: false,
+                params: named(&c.fitted),
+                evidence: v.evidence.clone(),
+            });
+            candidates.len() - 1
+        };
+        // Among the candidates that pass the gate, the one the validation record supports
+        // best: training BIC alone favours flexible forms that do not predict.
+        let mut best: Option<(usize, usize, f64)> = None;
+        let mut singles = Vec::new();
+        for (i, (p, c)) in pool.iter().zip(&tried).enumerate() {
+            let v = judge(c, &current, band, opts.bic_margin, nt, &unit);
+            let at = record(p, c, &v, &mut candidates);
+            if v.passed && best.is_none_or(|b| c.validate_ic < b.2) {
+                best = Some((i, at, c.validate_ic));
+            }
+            singles.push((i, v.delta_bic));
+        }
+        let mut chosen: Option<(Proposal, Evaluated, usize)> = best.map(|(i, at, _)| {
+            let c = tried.get(i).expect("index of a candidate");
+            (pool[i].clone(), c.clone(), at)
+        });
+        // No single effect passes, but the residual is structured: two effects concealed
+        // together may each be too small alone. Pairs of the best singles (one form per
+        // effect), started at the singles' fits.
+        if chosen.is_none() && current_summary.p_value <= 0.05 {
+            singles.sort_by(|a, b| a.1.total_cmp(&b.1));
+            let mut top: Vec<usize> = Vec::new();
+            for &(i, delta) in &singles {
+                let e = pool[i].parts[0].0;
+                let upgrade = parent.has(e);
+                if delta < 0.0
+                    && !upgrade
+                    && pool[i].placement == parent.placement()
+                    && !top.iter().any(|&j| pool[j].parts[0].0 == e)
+                {
+                    top.push(i);
+                }
+                if top.len() == opts.pair_pool {
+                    break;
+                }
+            }
+            let pairs: Vec<(usize, usize)> = (0..top.len())
+                .flat_map(|a| (a + 1..top.len()).map(move |b| (a, b)))
+                .map(|(a, b)| (top[a], top[b]))
+                .collect();
+            let proposals: Vec<Proposal> = pairs
+                .iter()
+                .map(|&(a, b)| Proposal {
+                    parts: vec![pool[a].parts[0], pool[b].parts[0]],
+                    placement: parent.placement(),
+                })
+                .collect();
+            let fitted: Vec<Evaluated> = proposals
+                .par_iter()
+                .zip(&pairs)
+                .map(|(p, &(a, b))| {
+                    fit_proposal(
+                        &current.fitted,
+                        p,
+                        &[&tried[a].fitted, &tried[b].fitted],
+                        &d,
+                        opts,
+                        round,
+                    )
+                })
+                .collect();
+            let mut best: Option<(usize, usize, f64)> = None;
+            for (i, (p, c)) in proposals.iter().zip(&fitted).enumerate() {
+                let v = judge(c, &current, band, 2.0 * opts.bic_margin, nt, &unit);
+                let at = record(p, c, &v, &mut candidates);
+                if v.passed && best.is_none_or(|b| c.validate_ic < b.2) {
+                    best = Some((i, at, c.validate_ic));
+                }
+            }
+            chosen = best.map(|(i, at, _)| (proposals[i].clone(), fitted[i].clone(), at));
+        }
+        let Some((p, c, at)) = chosen else { break };
+        candidates[at].accepted = true;
+        for e in p.effects() {
+            if !parent.has(e) {
+                left_out.push(e.name().to_string());
+            }
+        }
+        current = c;
+        current_summary = summary(&current, &d, &boot, opts.seed);
+    }
+    // Backward: an accepted effect the final model no longer needs (removing it leaves the
+    // validation RMSE inside the final model's band) is dropped, the least needed first.
+    while left_out.len() >= 2 {
+        let st = current.fitted.structure.clone();
+        let removable: Vec<Effect> = st
+            .effects()
+            .iter()
+            .copied()
+            .filter(|e| left_out.iter().any(|n| n == e.name()))
+            .filter(|e| !(*e == Effect::Dynamics && st.placement() == Placement::Feedback))
+            .collect();
+        let reduced: Vec<Evaluated> = removable
+            .par_iter()
+            .map(|&e| {
+                let smaller = st.without(e);
+                let start = st.embed(&current.fitted.theta, &smaller);
                 let f = fit::fit(
-                    &st,
+                    &smaller,
                     &d.ut,
                     &d.yt,
                     Some(&start),
-                    Some(&free),
-                    budget,
-                    opts.seed.wrapping_add(round as u64),
+                    None,
+                    Budget {
+                        global: 0,
+                        ..opts.candidate_budget
+                    },
+                    opts.seed.wrapping_add(100 + round as u64),
                 );
                 evaluate(f, &d, opts)
             })
             .collect();
-        let parent_bic = bic(&current.fitted, nt);
         let band = current_summary.validate_band;
-        let mut best: Option<(usize, f64)> = None;
-        let first = candidates.len();
-        for (i, ((e, placement), c)) in pool.iter().zip(&tried).enumerate() {
-            evaluations += c.fitted.evaluations;
-            let delta = bic(&c.fitted, nt) - parent_bic;
-            let bic_ok = delta < -opts.bic_margin;
-            let band_ok = c.validate_rmse < band[0];
-            let white_ok = c.score < current.score;
-            let ok = bic_ok && band_ok && white_ok;
-            let mark = |b: bool| if b { "yes" } else { "no" };
-            let fmt = |x: f64| crate::report::table::sig(x, 3);
-            let evidence = format!(
-                "ΔBIC {} (needs < -{}: {}); validation RMSE {} vs parent band [{}, {}] {unit} ({}); residual score {} -> {} ({})",
-                fmt(delta),
-                opts.bic_margin,
-                mark(bic_ok),
-                fmt(c.validate_rmse),
-                fmt(band[0]),
-                fmt(band[1]),
-                mark(band_ok),
-                fmt(current.score),
-                fmt(c.score),
-                mark(white_ok)
-            );
-            if ok && best.is_none_or(|(_, b)| delta < b) {
-                best = Some((i, delta));
+        let drop = removable
+            .iter()
+            .zip(&reduced)
+            .filter(|(_, r)| r.validate_rmse <= band[1])
+            .min_by(|a, b| a.1.validate_ic.total_cmp(&b.1.validate_ic));
+        evaluations += reduced.iter().map(|r| r.fitted.evaluations).sum::<u64>();
+        let Some((&e, r)) = drop else { break };
+        let fmt = |x: f64| crate::report::table::sig(x, 3);
+        for c in candidates.iter_mut().filter(|c| c.accepted && !c.dropped) {
+            if c.name.split('+').any(|n| n == e.name()) {
+                c.dropped = true;
+                c.evidence.push_str(&format!(
+                    "; dropped by the backward step: without it the final model's validation RMSE is {} (band [{}, {}] {unit})",
+                    fmt(r.validate_rmse),
+                    fmt(band[0]),
+                    fmt(band[1])
+                ));
             }
-            candidates.push(Candidate {
-                name: e.name().into(),
-                placement: (*e == Effect::Dynamics).then(|| placement.name().to_string()),
-                round,
-                parent: parent.label(),
-                delta_bic: delta,
-                train_rmse: c.fitted.rmse(nt),
-                validate_rmse: c.validate_rmse,
-                score: c.score,
-                accepted: false,
-                params: named(&c.fitted),
-                evidence,
-            });
         }
-        let Some((i, _)) = best else { break };
-        candidates[first + i].accepted = true;
-        left_out.push(pool[i].0.name().to_string());
-        current = tried.into_iter().nth(i).expect("index of a candidate");
+        left_out.retain(|n| n != e.name());
+        current = r.clone();
         current_summary = summary(&current, &d, &boot, opts.seed);
     }
     let free_runs: Vec<FreeRun> = tests
@@ -698,7 +995,6 @@ pub fn diagnose_with_tests(
             final_rmse: free_run(&current.fitted, t),
         })
         .collect();
-    let threshold = boot.last().copied().unwrap_or(1.0).max(1.0);
     // Structure the battery finds below half the training noise cannot be resolved by a
     // model fitted to the training data (it shows only on a cleaner validation record).
     let resolution = 0.5 * train_noise;
@@ -713,6 +1009,22 @@ pub fn diagnose_with_tests(
         dt,
         final_label: current_summary.model.clone(),
     };
+    let nuisances = {
+        let f = &current.fitted;
+        let names = f.structure.linear_names();
+        let at = |c: &[f64], name: &str| names.iter().position(|n| *n == name).map(|i| c[i]);
+        let mut m = BTreeMap::new();
+        if let Some(t) = named(f).get("timing_offset_s") {
+            m.insert("timing_offset_s".to_string(), *t);
+        }
+        if let Some(o) = at(&f.linear.coef, "d0") {
+            m.insert("offset_train".to_string(), o);
+        }
+        if let Some(o) = at(&current.coef_v, "d0") {
+            m.insert("offset_validate".to_string(), o);
+        }
+        m
+    };
     let diag = Diagnosis {
         model: opts.model.clone(),
         train: train.name.clone(),
@@ -726,6 +1038,7 @@ pub fn diagnose_with_tests(
         candidates,
         left_out,
         final_model: current_summary,
+        nuisances,
         unexplained,
         resolution,
         residual_structured: structured,

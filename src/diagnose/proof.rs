@@ -97,8 +97,8 @@ pub fn kinds() -> Vec<CaseKind> {
     let k = |truth, size| CaseKind { truth, size };
     vec![
         k(None, 0.0),
-        k(Some(Effect::Dynamics), 250.0),
-        k(Some(Effect::InputLag), 200.0),
+        k(Some(Effect::Dynamics), 220.0),
+        k(Some(Effect::InputLag), 150.0),
         k(Some(Effect::Delay), 1e-3),
         k(Some(Effect::Creep), 0.025),
         k(Some(Effect::Asymmetry), 2.2e-4),

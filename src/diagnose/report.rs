@@ -74,14 +74,44 @@ pub fn text(d: &Diagnosis) -> String {
         }
         let _ = writeln!(
             s,
-            "  {} {:<16} ΔBIC {:>9}  validation RMSE {}{u}",
-            if c.accepted { "+" } else { " " },
-            match &c.placement {
-                Some(p) if p != "after-hysteresis" => format!("{}({p})", c.name),
-                _ => c.name.clone(),
+            "  {} {:<40} ΔBIC {:>9}  validation RMSE {}{u}  evidence {}",
+            match (c.accepted, c.dropped) {
+                (true, false) => "+",
+                (true, true) => "-",
+                _ => " ",
             },
+            format!(
+                "{} [{}]",
+                match &c.placement {
+                    Some(p) if p != "after-hysteresis" => format!("{}({p})", c.name),
+                    _ => c.name.clone(),
+                },
+                c.form
+            ),
             f(c.delta_bic),
-            f(c.validate_rmse)
+            f(c.validate_rmse),
+            f(c.validate_ic)
+        );
+    }
+    if d.candidates.iter().any(|c| c.dropped) {
+        let _ = writeln!(
+            s,
+            "  (- accepted, then dropped by the backward step: the final model does not need it)"
+        );
+    }
+    for c in d.candidates.iter().filter(|c| c.accepted && !c.dropped) {
+        let _ = writeln!(s, "{} [{}]: {}", c.name, c.form, c.transfer);
+    }
+    if !d.nuisances.is_empty() {
+        let parts: Vec<String> = d
+            .nuisances
+            .iter()
+            .map(|(k, v)| format!("{k} {}", sig(*v, 3)))
+            .collect();
+        let _ = writeln!(
+            s,
+            "nuisances (the recording set-up, not named as physics): {}",
+            parts.join(", ")
         );
     }
     let fm = &d.final_model;

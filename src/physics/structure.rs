@@ -96,6 +96,90 @@ impl Effect {
             Effect::OffsetDrift => "sensor offset drifting slowly, uncorrelated with the input",
         }
     }
+
+    /// The functional forms the effect is searched in, the first the default. One name
+    /// covers several forms because physics offers several (a soft saturation is not a
+    /// clip; thermal settling is not a polynomial in time).
+    pub fn forms(self) -> &'static [Form] {
+        match self {
+            Effect::Delay => &[Form::Transport],
+            Effect::InputLag => &[Form::FirstOrder, Form::SecondOrder],
+            Effect::Saturation => &[Form::Hard, Form::Smooth, Form::Cubic],
+            Effect::Asymmetry => &[Form::Even, Form::Direction],
+            Effect::RateDependence => &[Form::Width, Form::Gain],
+            Effect::Creep => &[Form::KelvinVoigt, Form::Logarithmic],
+            Effect::Dynamics => &[Form::OneMode, Form::TwoModes],
+            Effect::OffsetDrift => &[Form::Polynomial, Form::Spline],
+        }
+    }
+
+    /// Whether the effect belongs to one recording (a sensor's offset drift), refitted on
+    /// every record, rather than to the actuator (carried over with the same parameters).
+    pub fn per_record(self) -> bool {
+        self == Effect::OffsetDrift
+    }
+}
+
+/// One functional form of an [`Effect`] ([`Effect::forms`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Form {
+    /// Delay: a fractional transport delay.
+    Transport,
+    /// Input lag: first-order low-pass.
+    FirstOrder,
+    /// Input lag: second-order low-pass (an amplifier with a damped pole pair).
+    SecondOrder,
+    /// Saturation: the drive clipped.
+    Hard,
+    /// Saturation: `L tanh(x/L)`.
+    Smooth,
+    /// Saturation: `x - c x³/u_ref²`.
+    Cubic,
+    /// Asymmetry: `x + q x²/u_ref`.
+    Even,
+    /// Asymmetry: the hysteretic slope differs on rising and falling drive.
+    Direction,
+    /// Rate-dependence: the loop width grows with the rate.
+    Width,
+    /// Rate-dependence: the linear gain grows with the rate.
+    Gain,
+    /// Creep: two Kelvin-Voigt elements, one fast and one slow.
+    KelvinVoigt,
+    /// Creep: equal weight per decade of time constants (logarithmic creep).
+    Logarithmic,
+    /// Dynamics: one mode.
+    OneMode,
+    /// Dynamics: two modes in parallel (modal superposition).
+    TwoModes,
+    /// Drift: quadratic in time.
+    Polynomial,
+    /// Drift: a piecewise-linear function of time (knots every few seconds): settling,
+    /// wander, anything smooth.
+    Spline,
+}
+
+impl Form {
+    /// The name in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Form::Transport => "transport",
+            Form::FirstOrder => "first-order",
+            Form::SecondOrder => "second-order",
+            Form::Hard => "hard",
+            Form::Smooth => "smooth",
+            Form::Cubic => "cubic",
+            Form::Even => "even-order",
+            Form::Direction => "direction",
+            Form::Width => "width",
+            Form::Gain => "gain",
+            Form::KelvinVoigt => "kelvin-voigt",
+            Form::Logarithmic => "logarithmic",
+            Form::OneMode => "one-mode",
+            Form::TwoModes => "two-modes",
+            Form::Polynomial => "polynomial",
+            Form::Spline => "spline",
+        }
+    }
 }
 
 /// One shape parameter: its name, physical bounds and neutral value.
@@ -187,6 +271,8 @@ impl Context {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Structure {
     effects: Vec<Effect>,
+    /// The form of each effect (same order as `effects`).
+    forms: Vec<Form>,
     fixed_n: Option<f64>,
     ctx: Context,
     placement: Placement,
@@ -221,18 +307,37 @@ struct Shape {
     w: f64,
     n: f64,
     g0: f64,
+    /// Sub-sample timing of the input (samples; positive: the input acts later).
+    timing: f64,
     delay: f64,
     lag: f64,
+    /// Second-order input lag: natural frequency (Hz; infinite: none) and damping.
+    lag2_hz: f64,
+    lag2_zeta: f64,
     sat_c: f64,
+    /// Smooth saturation `u_ref/κ tanh(κ x/u_ref)` (κ = 0: none).
+    sat_k: f64,
+    /// Cubic compression coefficient.
+    sat_cubic: f64,
     q: f64,
+    /// Direction asymmetry: the hysteretic slope is `1 ± a` on rising / falling drive.
+    dir_a: f64,
     rho: f64,
     tau_r: f64,
+    /// Rate acts on the linear gain instead of the loop width.
+    rate_gain: bool,
     creep_g: f64,
     creep_tau: f64,
     creep_g2: f64,
     creep_tau2: f64,
+    /// Logarithmic creep: gain per decade (elements one per decade).
+    creep_log: f64,
     mode_p: f64,
     zeta: f64,
+    /// Second mode (parallel): frequency (Hz), damping and share.
+    mode2_hz: f64,
+    mode2_zeta: f64,
+    mode2_share: f64,
     /// Feedback placement: oscillator frequency (Hz), damping, hysteretic share, shape.
     fb_hz: f64,
     fb_zeta: f64,
@@ -242,25 +347,34 @@ struct Shape {
 }
 
 impl Shape {
-    /// Every parameter finite (unused ones hold finite defaults).
+    /// Every parameter finite (unused ones hold finite defaults; `lag2_hz` is infinite
+    /// when off).
     fn is_finite(&self) -> bool {
         [
             self.s,
             self.w,
             self.n,
             self.g0,
+            self.timing,
             self.delay,
             self.lag,
+            self.lag2_zeta,
             self.sat_c,
+            self.sat_k,
+            self.sat_cubic,
             self.q,
+            self.dir_a,
             self.rho,
             self.tau_r,
             self.creep_g,
             self.creep_tau,
             self.creep_g2,
             self.creep_tau2,
+            self.creep_log,
             self.mode_p,
             self.zeta,
+            self.mode2_zeta,
+            self.mode2_share,
             self.fb_hz,
             self.fb_zeta,
             self.fb_r,
@@ -269,47 +383,141 @@ impl Shape {
         ]
         .iter()
         .all(|x| x.is_finite())
+            && !self.lag2_hz.is_nan()
+            && !self.mode2_hz.is_nan()
     }
 
-    /// The memoryless part of the chain: saturation, then asymmetry (`u_ref` the training
-    /// peak).
+    /// The memoryless part of the chain: saturation (hard, smooth or cubic), then
+    /// asymmetry (`u_ref` the training peak).
     fn drive(&self, u_ref: f64) -> impl Fn(f64) -> f64 {
         let limit = if self.sat_c > 0.0 {
             u_ref / self.sat_c
         } else {
             f64::INFINITY
         };
-        let q = self.q;
+        let (k, cubic, q) = (self.sat_k, self.sat_cubic, self.q);
         move |x: f64| {
-            let x = x.clamp(-limit, limit);
+            let mut x = x.clamp(-limit, limit);
+            if k > 0.0 {
+                x = u_ref / k * (k * x / u_ref).tanh();
+            }
+            if cubic != 0.0 {
+                x -= cubic * x * x * x / (u_ref * u_ref);
+            }
             x + q * x * x / u_ref
+        }
+    }
+
+    /// The creep elements `(gain, τ)`: the Kelvin-Voigt pair, or for logarithmic creep one
+    /// element per decade from 10 samples to ten training records, equal gains.
+    fn creep_elements(&self, form: Form, ctx: &Context) -> Vec<(f64, f64)> {
+        match form {
+            Form::Logarithmic => log_creep_taus(ctx)
+                .into_iter()
+                .map(|tau| (self.creep_log, tau))
+                .collect(),
+            _ => vec![
+                (self.creep_g, self.creep_tau),
+                (self.creep_g2, self.creep_tau2),
+            ],
         }
     }
 }
 
+/// Time constants of logarithmic creep: one per decade from 10 samples to ten training
+/// records.
+fn log_creep_taus(ctx: &Context) -> Vec<f64> {
+    let lo = (10.0 * ctx.dt).log10();
+    let hi = (10.0 * ctx.t_ref).max(100.0 * ctx.dt).log10();
+    let m = ((hi - lo).ceil() as usize).clamp(2, 8);
+    (0..m)
+        .map(|i| 10f64.powf(lo + (hi - lo) * (i as f64 + 0.5) / m as f64))
+        .collect()
+}
+
+/// The two time constants whose decays stand for a logarithmic creep chain's initial state
+/// (the band's lower and upper thirds).
+fn log_creep_state_taus(ctx: &Context) -> [f64; 2] {
+    let t = log_creep_taus(ctx);
+    [t[t.len() / 3], t[(2 * t.len()) / 3]]
+}
+
+/// Knots of the spline drift: one every 2.5 s of the training record, 3 to 16 segments.
+fn spline_segments(ctx: &Context) -> usize {
+    ((ctx.t_ref / 2.5).round() as usize).clamp(3, 16)
+}
+
+/// `u` shifted by `s` samples (positive: later), by linear interpolation between samples;
+/// beyond the ends the end values hold.
+fn shift(u: &[f64], s: f64) -> Vec<f64> {
+    let n = u.len();
+    if s == 0.0 || n < 2 {
+        return u.to_vec();
+    }
+    let whole = s.floor();
+    let frac = s - whole;
+    let w = whole as i64;
+    let at = |i: i64| u[i.clamp(0, n as i64 - 1) as usize];
+    (0..n as i64)
+        .map(|k| {
+            let (a, b) = (at(k - w), at(k - w - 1));
+            a + frac * (b - a)
+        })
+        .collect()
+}
+
 impl Structure {
-    /// The plain model plus `effects` (any order, duplicates ignored); `fixed_n` pins the
-    /// Bouc-Wen exponent (e.g. 1) instead of fitting it.
+    /// The plain model plus `effects` (any order, duplicates ignored) in their default
+    /// forms; `fixed_n` pins the Bouc-Wen exponent (e.g. 1) instead of fitting it.
     pub fn new(effects: &[Effect], fixed_n: Option<f64>, ctx: Context) -> Structure {
         Self::placed(effects, fixed_n, ctx, Placement::After)
     }
 
-    /// The model with `dynamics` at `placement`. With [`Placement::Feedback`] `dynamics` is
-    /// always on (it is the oscillator the hysteresis sits in) and `rate-dependence` is not
-    /// available (its rate would be the displacement's, not the drive's).
+    /// The model with `dynamics` at `placement`, effects in their default forms. With
+    /// [`Placement::Feedback`] `dynamics` is always on (it is the oscillator the hysteresis
+    /// sits in) and `rate-dependence` is not available (its rate would be the
+    /// displacement's, not the drive's).
     pub fn placed(
         effects: &[Effect],
         fixed_n: Option<f64>,
         ctx: Context,
         placement: Placement,
     ) -> Structure {
-        let mut effects = effects.to_vec();
+        let parts: Vec<(Effect, Form)> = effects.iter().map(|&e| (e, e.forms()[0])).collect();
+        Self::with_forms(&parts, fixed_n, ctx, placement)
+    }
+
+    /// The model with effects in given forms (the first form of a duplicated effect wins;
+    /// a form that is not the effect's falls back to its default).
+    pub fn with_forms(
+        parts: &[(Effect, Form)],
+        fixed_n: Option<f64>,
+        ctx: Context,
+        placement: Placement,
+    ) -> Structure {
+        let mut parts: Vec<(Effect, Form)> = parts
+            .iter()
+            .map(|&(e, f)| {
+                if e.forms().contains(&f) {
+                    (e, f)
+                } else {
+                    (e, e.forms()[0])
+                }
+            })
+            .collect();
         if placement == Placement::Feedback {
-            effects.push(Effect::Dynamics);
-            effects.retain(|e| *e != Effect::RateDependence);
+            // The oscillator is the one mode; the direction form acts on the hysteretic
+            // slope of the after-placement kernel only.
+            parts.retain(|(e, _)| !matches!(e, Effect::RateDependence | Effect::Dynamics));
+            parts.push((Effect::Dynamics, Form::OneMode));
+            for p in &mut parts {
+                if *p == (Effect::Asymmetry, Form::Direction) {
+                    p.1 = Form::Even;
+                }
+            }
         }
-        effects.sort();
-        effects.dedup();
+        parts.sort_by_key(|p| p.0);
+        parts.dedup_by_key(|p| p.0);
         let dt = ctx.dt;
         let t = ctx.t_ref;
         let spec = |name, lower, upper, neutral, effect| ParamSpec {
@@ -354,24 +562,48 @@ impl Structure {
         // The hysteretic state at the first sample, as a fraction of its saturation level:
         // a recording starts with a history the data do not show.
         specs.push(spec("g0_frac", -1.0, 1.0, 0.0, None));
-        for &e in &effects {
+        // A nuisance of the recording set-up, not of the actuator: where the input acts
+        // within a sample. A drive linear between samples acts half a sample earlier than
+        // the zero-order hold the blocks assume; the sensor may sample anywhere in the
+        // interval. So -1 to +0.5 samples belong to the baseline; a longer delay is physics.
+        specs.push(spec("timing_samples", -1.0, 0.5, 0.0, None));
+        let z = (0.005f64.log10(), 1.5f64.log10());
+        for &(e, form) in &parts {
             let x = Some(e);
-            match e {
-                Effect::Delay => specs.push(spec("delay_samples", 0.0, 10.0, 0.0, x)),
-                Effect::InputLag => {
+            match (e, form) {
+                (Effect::Delay, _) => specs.push(spec("delay_samples", 0.0, 10.0, 0.0, x)),
+                (Effect::InputLag, Form::SecondOrder) => {
+                    // The top (Nyquist) is no filter at all.
+                    specs.push(spec("lag2_log10_hz", lo_hz, hi, hi, x));
+                    let zl = (0.4f64.log10(), 1.5f64.log10());
+                    specs.push(spec("lag2_log10_zeta", zl.0, zl.1, 0.7f64.log10(), x));
+                }
+                (Effect::InputLag, _) => {
                     // Log scale; the lower end (τ = dt/100) is a wire.
                     let lo = (0.01 * dt).log10();
                     specs.push(spec("lag_log10_tau_s", lo, (20.0 * dt).log10(), lo, x))
                 }
+                (Effect::Saturation, Form::Smooth) => {
+                    specs.push(spec("sat_smooth_k", 0.0, 2.0, 0.0, x))
+                }
+                (Effect::Saturation, Form::Cubic) => {
+                    specs.push(spec("sat_cubic", 0.0, 0.3, 0.0, x))
+                }
                 // Clip level over the training peak; the top (1) is no clipping at all.
-                Effect::Saturation => specs.push(spec("sat_level", 0.5, 1.0, 1.0, x)),
-                Effect::Asymmetry => specs.push(spec("asym_q", -0.3, 0.3, 0.0, x)),
-                Effect::RateDependence => {
+                (Effect::Saturation, _) => specs.push(spec("sat_level", 0.5, 1.0, 1.0, x)),
+                (Effect::Asymmetry, Form::Direction) => {
+                    specs.push(spec("asym_dir", -0.5, 0.5, 0.0, x))
+                }
+                (Effect::Asymmetry, _) => specs.push(spec("asym_q", -0.3, 0.3, 0.0, x)),
+                (Effect::RateDependence, _) => {
                     specs.push(spec("rate_rho", 0.0, 2.0, 0.0, x));
                     let (lo, hi) = ((2.0 * dt).log10(), (0.5 * t).max(4.0 * dt).log10());
                     specs.push(spec("rate_log10_tau_s", lo, hi, 0.5 * (lo + hi), x));
                 }
-                Effect::Creep => {
+                (Effect::Creep, Form::Logarithmic) => {
+                    specs.push(spec("creep_log_gain", 0.0, 0.1, 0.0, x))
+                }
+                (Effect::Creep, _) => {
                     let mid = (0.25 * t).max(20.0 * dt).log10();
                     let (lo, hi) = ((10.0 * dt).log10(), (10.0 * t).max(40.0 * dt).log10());
                     specs.push(spec("creep_g", 0.0, 0.2, 0.0, x));
@@ -379,19 +611,25 @@ impl Structure {
                     specs.push(spec("creep_g2", 0.0, 0.2, 0.0, x));
                     specs.push(spec("creep_log10_tau2_s", mid, hi, 0.5 * (mid + hi), x));
                 }
-                Effect::Dynamics if placement == Placement::Feedback => {}
-                Effect::Dynamics => {
+                (Effect::Dynamics, _) if placement == Placement::Feedback => {}
+                (Effect::Dynamics, f) => {
                     // Modes from fs/200 to Nyquist on a log scale (above it a mode aliases);
                     // the upper end itself is a wire (no mode).
                     specs.push(spec("mode_log10_hz", lo_hz, hi, hi, x));
-                    let z = (0.005f64.log10(), 1.5f64.log10());
                     specs.push(spec("mode_log10_zeta", z.0, z.1, 0.3f64.log10(), x));
+                    if f == Form::TwoModes {
+                        specs.push(spec("mode2_log10_hz", lo_hz, hi, hi, x));
+                        specs.push(spec("mode2_log10_zeta", z.0, z.1, 0.3f64.log10(), x));
+                        specs.push(spec("mode2_share", 0.0, 1.0, 0.0, x));
+                    }
                 }
-                Effect::OffsetDrift => {}
+                (Effect::OffsetDrift, _) => {}
             }
         }
+        let (effects, forms) = parts.into_iter().unzip();
         Structure {
             effects,
+            forms,
             fixed_n,
             ctx,
             placement,
@@ -414,14 +652,35 @@ impl Structure {
         self.effects.contains(&e)
     }
 
-    /// `bouc-wen+creep+dynamics`; the feedback placement reads `dynamics(feedback)`.
+    /// The form of `e`, if on.
+    pub fn form(&self, e: Effect) -> Option<Form> {
+        let i = self.effects.iter().position(|x| *x == e)?;
+        Some(self.forms[i])
+    }
+
+    /// The effects with their forms.
+    pub fn parts(&self) -> Vec<(Effect, Form)> {
+        self.effects
+            .iter()
+            .copied()
+            .zip(self.forms.iter().copied())
+            .collect()
+    }
+
+    /// `bouc-wen+creep+dynamics`; the feedback placement reads `dynamics(feedback)`, a form
+    /// other than the effect's default `creep[logarithmic]`.
     pub fn label(&self) -> String {
         let mut s = String::from("bouc-wen");
-        for e in &self.effects {
+        for (e, f) in self.effects.iter().zip(&self.forms) {
             s.push('+');
             s.push_str(e.name());
             if *e == Effect::Dynamics && self.placement == Placement::Feedback {
                 s.push_str("(feedback)");
+            }
+            if *f != e.forms()[0] {
+                s.push('[');
+                s.push_str(f.name());
+                s.push(']');
             }
         }
         s
@@ -448,8 +707,30 @@ impl Structure {
             Placement::After => vec!["d_e", "d0", "alpha"],
             Placement::Feedback => vec!["scale", "d0"],
         };
-        if self.has(Effect::OffsetDrift) {
-            v.extend(["drift_a1", "drift_a2"]);
+        match self.form(Effect::OffsetDrift) {
+            Some(Form::Spline) => {
+                const KNOTS: [&str; 16] = [
+                    "drift_k1",
+                    "drift_k2",
+                    "drift_k3",
+                    "drift_k4",
+                    "drift_k5",
+                    "drift_k6",
+                    "drift_k7",
+                    "drift_k8",
+                    "drift_k9",
+                    "drift_k10",
+                    "drift_k11",
+                    "drift_k12",
+                    "drift_k13",
+                    "drift_k14",
+                    "drift_k15",
+                    "drift_k16",
+                ];
+                v.extend(&KNOTS[..spline_segments(&self.ctx)]);
+            }
+            Some(_) => v.extend(["drift_a1", "drift_a2"]),
+            None => {}
         }
         if self.has(Effect::Creep) {
             v.extend(["creep_x0_fast", "creep_x0_slow"]);
@@ -459,12 +740,23 @@ impl Structure {
 
     /// Indices (in [`LinearFit::coef`]) of coefficients that belong to a record's own
     /// initial state (the creep elements' states at its first sample, which decay as
-    /// `e^(-t/τ)`): refitted on every record by [`Self::simulate_on`].
+    /// `e^(-t/τ)`).
     pub fn initial_state_coefs(&self) -> Vec<usize> {
+        self.coefs_where(|n| n.starts_with("creep_x0"))
+    }
+
+    /// Indices of the coefficients that belong to one record, refitted on every record by
+    /// [`Self::simulate_on`]: its sensor offset, its drift and its initial creep states.
+    /// The rest (gains, the hysteresis) are the actuator's and carry over.
+    pub fn record_coefs(&self) -> Vec<usize> {
+        self.coefs_where(|n| n == "d0" || n.starts_with("drift_") || n.starts_with("creep_x0"))
+    }
+
+    fn coefs_where(&self, keep: impl Fn(&str) -> bool) -> Vec<usize> {
         self.linear_names()
             .iter()
             .enumerate()
-            .filter(|(_, n)| n.starts_with("creep_x0"))
+            .filter(|(_, n)| keep(n))
             .map(|(i, _)| i)
             .collect()
     }
@@ -474,17 +766,30 @@ impl Structure {
         self.specs.len() + self.linear_names().len()
     }
 
-    /// The same structure with `e` added (use [`Self::embed`] for the nested start).
+    /// The same structure with `e` added in its default form (use [`Self::embed`] for the
+    /// nested start).
     pub fn extended(&self, e: Effect) -> Structure {
-        let mut effects = self.effects.clone();
-        effects.push(e);
-        Structure::placed(&effects, self.fixed_n, self.ctx, self.placement)
+        self.extended_with(e, e.forms()[0])
+    }
+
+    /// The same structure with `e` added (or its form replaced) in form `form`.
+    pub fn extended_with(&self, e: Effect, form: Form) -> Structure {
+        let mut parts: Vec<(Effect, Form)> =
+            self.parts().into_iter().filter(|p| p.0 != e).collect();
+        parts.push((e, form));
+        Structure::with_forms(&parts, self.fixed_n, self.ctx, self.placement)
+    }
+
+    /// The same structure without `e`.
+    pub fn without(&self, e: Effect) -> Structure {
+        let parts: Vec<(Effect, Form)> = self.parts().into_iter().filter(|p| p.0 != e).collect();
+        Structure::with_forms(&parts, self.fixed_n, self.ctx, self.placement)
     }
 
     /// The same effects with `dynamics` at `placement` (not nested across placements:
     /// [`Self::embed`] carries the shared parameters, the rest start neutral).
     pub fn with_placement(&self, placement: Placement) -> Structure {
-        Structure::placed(&self.effects, self.fixed_n, self.ctx, placement)
+        Structure::with_forms(&self.parts(), self.fixed_n, self.ctx, placement)
     }
 
     /// `theta` (a shape vector of this structure) carried into `other`, which must contain
@@ -497,7 +802,8 @@ impl Structure {
                 self.specs
                     .iter()
                     .position(|m| m.name == s.name)
-                    .map_or(s.neutral, |i| theta[i])
+                    .and_then(|i| theta.get(i).copied())
+                    .unwrap_or(s.neutral)
             })
             .collect()
     }
@@ -508,18 +814,29 @@ impl Structure {
             w: 0.5,
             n: self.fixed_n.unwrap_or(1.0),
             g0: 0.0,
+            timing: 0.0,
             delay: 0.0,
             lag: 0.0,
+            lag2_hz: f64::INFINITY,
+            lag2_zeta: 0.7,
             sat_c: 0.0,
+            sat_k: 0.0,
+            sat_cubic: 0.0,
             q: 0.0,
+            dir_a: 0.0,
             rho: 0.0,
             tau_r: 1.0,
+            rate_gain: self.form(Effect::RateDependence) == Some(Form::Gain),
             creep_g: 0.0,
             creep_tau: 1.0,
             creep_g2: 0.0,
             creep_tau2: 1.0,
+            creep_log: 0.0,
             mode_p: 0.0,
             zeta: 0.3,
+            mode2_hz: 1.0,
+            mode2_zeta: 0.3,
+            mode2_share: 0.0,
             fb_hz: 1.0,
             fb_zeta: 0.05,
             fb_r: 0.5,
@@ -532,7 +849,29 @@ impl Structure {
                 "w" => sh.w = x,
                 "n" => sh.n = x,
                 "g0_frac" => sh.g0 = x,
+                "timing_samples" => sh.timing = x,
                 "delay_samples" => sh.delay = x,
+                "lag2_log10_hz" => {
+                    sh.lag2_hz = if x >= spec.upper - 1e-9 {
+                        f64::INFINITY
+                    } else {
+                        10f64.powf(x)
+                    }
+                }
+                "lag2_log10_zeta" => sh.lag2_zeta = 10f64.powf(x),
+                "sat_smooth_k" => sh.sat_k = x,
+                "sat_cubic" => sh.sat_cubic = x,
+                "asym_dir" => sh.dir_a = x,
+                "creep_log_gain" => sh.creep_log = x,
+                "mode2_log10_hz" => {
+                    sh.mode2_hz = if x >= spec.upper - 1e-9 {
+                        f64::INFINITY
+                    } else {
+                        10f64.powf(x)
+                    }
+                }
+                "mode2_log10_zeta" => sh.mode2_zeta = 10f64.powf(x),
+                "mode2_share" => sh.mode2_share = x,
                 "lag_log10_tau_s" => {
                     // The bottom of the range is no lag at all.
                     sh.lag = if x <= spec.lower + 1e-9 {
@@ -568,12 +907,13 @@ impl Structure {
         sh
     }
 
-    /// The `g`-form Bouc-Wen shape (`α = 1`, `d_e = d0 = 0`).
-    fn kernel(&self, sh: &Shape) -> BoucWenKernel {
+    /// The `g`-form Bouc-Wen shape (`α = slope`, 1 but for direction asymmetry,
+    /// `d_e = d0 = 0`).
+    fn kernel(&self, sh: &Shape, slope: f64) -> BoucWenKernel {
         let sigma = (sh.s * self.ctx.u_ref).powf(-sh.n);
         BoucWenKernel::new(&BoucWenParams {
             d_e: 0.0,
-            alpha: 1.0,
+            alpha: slope,
             beta: sh.w * sigma,
             gamma: (1.0 - sh.w) * sigma,
             n: sh.n,
@@ -598,12 +938,28 @@ impl Structure {
             return (vec![cv, vec![], cg], status);
         }
         let finite_shape = sh.is_finite();
-        let kernel = self.kernel(&sh);
+        let u = &shift(
+            u,
+            if finite_shape {
+                sh.timing.clamp(-2.0, 2.0)
+            } else {
+                0.0
+            },
+        );
+        // Direction asymmetry: the hysteretic slope is 1 + a on rising drive, 1 - a falling.
+        let up = self.kernel(&sh, 1.0 + sh.dir_a);
+        let down = if sh.dir_a != 0.0 {
+            self.kernel(&sh, 1.0 - sh.dir_a)
+        } else {
+            up
+        };
         let drive = sh.drive(ctx.u_ref);
         let mut delay = (self.has(Effect::Delay) && sh.delay > 0.0)
             .then(|| Delay::new(sh.delay.clamp(0.0, 1e4) * dt, dt));
         let mut lag =
             (self.has(Effect::InputLag) && sh.lag > 0.0).then(|| LowPass::new(sh.lag, dt));
+        let mut lag2 = (self.has(Effect::InputLag) && sh.lag2_hz.is_finite())
+            .then(|| Mode::new(sh.lag2_hz, sh.lag2_zeta.max(0.0), dt));
         let mut rate =
             (self.has(Effect::RateDependence) && sh.rho != 0.0).then(|| LowPass::new(sh.tau_r, dt));
         let exp_tau = lag.as_ref().map(|_| sh.lag);
@@ -611,8 +967,9 @@ impl Structure {
             Some(t) => l.with_exp_hold(t),
             None => l,
         };
-        let mut creep: Vec<(f64, LowPass, LowPass)> = if self.has(Effect::Creep) {
-            [(sh.creep_g, sh.creep_tau), (sh.creep_g2, sh.creep_tau2)]
+        let mut creep: Vec<(f64, LowPass, LowPass)> = match self.form(Effect::Creep) {
+            Some(form) => sh
+                .creep_elements(form, ctx)
                 .into_iter()
                 .filter(|(g, _)| *g != 0.0)
                 .map(|(g, tau)| {
@@ -622,21 +979,28 @@ impl Structure {
                         with_hold_lp(LowPass::new(tau, dt)),
                     )
                 })
-                .collect()
-        } else {
-            Vec::new()
+                .collect(),
+            None => Vec::new(),
+        };
+        let mk_mode = |f: f64, zeta: f64| {
+            let m = Mode::new(f, zeta.max(0.0), dt);
+            match exp_tau {
+                Some(t) => m.with_exp_hold(t),
+                None => m,
+            }
         };
         let mut mode = (self.has(Effect::Dynamics) && sh.mode_p > 0.0).then(|| {
             let f = 1.0 / (2.0 * std::f64::consts::PI * sh.mode_p);
-            let mk = || {
-                let m = Mode::new(f, sh.zeta.max(0.0), dt);
-                match exp_tau {
-                    Some(t) => m.with_exp_hold(t),
-                    None => m,
-                }
-            };
-            (mk(), mk())
+            (mk_mode(f, sh.zeta), mk_mode(f, sh.zeta))
         });
+        let share = sh.mode2_share.clamp(0.0, 1.0);
+        let mut mode2 = (self.has(Effect::Dynamics) && sh.mode2_hz.is_finite() && share > 0.0)
+            .then(|| {
+                (
+                    mk_mode(sh.mode2_hz, sh.mode2_zeta),
+                    mk_mode(sh.mode2_hz, sh.mode2_zeta),
+                )
+            });
 
         // Initial state: every block at rest at the first sample.
         let u0 = u[0];
@@ -644,6 +1008,9 @@ impl Structure {
             d.settle(u0);
         }
         if let Some(l) = &mut lag {
+            l.settle(u0);
+        }
+        if let Some(l) = &mut lag2 {
             l.settle(u0);
         }
         let v0 = drive(u0);
@@ -657,13 +1024,20 @@ impl Structure {
             a.settle(v0);
             b.settle(-g_init);
         }
-        if let Some((a, b)) = &mut mode {
-            let k = 1.0 + creep.iter().map(|c| c.0).sum::<f64>();
-            a.settle(k * v0);
-            b.settle(-k * g_init);
+        let k_dc = 1.0 + creep.iter().map(|c| c.0).sum::<f64>();
+        for (a, b) in mode.iter_mut().chain(mode2.iter_mut()) {
+            a.settle(k_dc * v0);
+            b.settle(-k_dc * g_init);
         }
         let bound = 1e6 * (1.0 + ctx.u_ref) * (1.0 + u.iter().fold(0.0f64, |m, x| m.max(x.abs())));
         let mut v_prev = v0;
+        let step_mode = |m: &mut Mode, x: f64| {
+            if exp_tau.is_some() {
+                m.step_exp(x)
+            } else {
+                m.step(x)
+            }
+        };
         for k in 0..n {
             let mut x = u[k];
             if let Some(d) = &mut delay {
@@ -672,15 +1046,28 @@ impl Structure {
             if let Some(l) = &mut lag {
                 x = l.step(x);
             }
+            if let Some(l) = &mut lag2 {
+                x = l.step(x);
+            }
             let v = drive(x);
-            g = kernel.advance(g, v - v_prev);
+            let dv = v - v_prev;
+            g = if dv >= 0.0 {
+                up.advance(g, dv)
+            } else {
+                down.advance(g, dv)
+            };
             let mut hv = g;
+            let mut vv = v;
             if let Some(r) = &mut rate {
-                let rr = r.step((v - v_prev).abs() / dt) / ctx.rate_ref;
-                hv *= 1.0 + sh.rho * rr;
+                let rr = r.step(dv.abs() / dt) / ctx.rate_ref;
+                if sh.rate_gain {
+                    vv *= 1.0 + sh.rho * rr;
+                } else {
+                    hv *= 1.0 + sh.rho * rr;
+                }
             }
             v_prev = v;
-            let (mut a, mut b) = (v, -hv);
+            let (mut a, mut b) = (vv, -hv);
             let (a0, b0) = (a, b);
             for (gain, ca, cb) in &mut creep {
                 let (la, lb) = if exp_tau.is_some() {
@@ -691,14 +1078,18 @@ impl Structure {
                 a += *gain * la;
                 b += *gain * lb;
             }
-            if let Some((ma, mb)) = &mut mode {
-                if exp_tau.is_some() {
-                    a = ma.step_exp(a);
-                    b = mb.step_exp(b);
-                } else {
-                    a = ma.step(a);
-                    b = mb.step(b);
+            match (&mut mode, &mut mode2) {
+                (Some((ma, mb)), Some((na, nb))) => {
+                    let (a1, b1) = (step_mode(ma, a), step_mode(mb, b));
+                    let (a2, b2) = (step_mode(na, a), step_mode(nb, b));
+                    a = (1.0 - share) * a1 + share * a2;
+                    b = (1.0 - share) * b1 + share * b2;
                 }
+                (Some((ma, mb)), None) | (None, Some((ma, mb))) => {
+                    a = step_mode(ma, a);
+                    b = step_mode(mb, b);
+                }
+                (None, None) => {}
             }
             if !(finite_shape && a.is_finite() && b.is_finite() && g.abs() <= bound) {
                 status = Status::Unstable { at: k };
@@ -714,17 +1105,38 @@ impl Structure {
         (cols, status)
     }
 
-    /// The drift columns `t/T, (t/T)²` and the creep elements' initial-state decays.
+    /// The drift columns (`t/T, (t/T)²`, or the spline's hat functions over the record's
+    /// own length) and the creep elements' initial-state decays.
     fn tail_columns(&self, sh: &Shape, n: usize) -> Vec<Vec<f64>> {
         let dt = self.ctx.dt;
         let mut cols = Vec::new();
-        if self.has(Effect::OffsetDrift) {
-            let t: Vec<f64> = (0..n).map(|k| k as f64 * dt / self.ctx.t_ref).collect();
-            cols.push(t.iter().map(|x| x * x).collect());
-            cols.insert(0, t);
+        match self.form(Effect::OffsetDrift) {
+            Some(Form::Spline) => {
+                // Hats at knots 1..=m over [0, n-1]; the constant column spans knot 0.
+                let m = spline_segments(&self.ctx);
+                let width = (n.max(2) - 1) as f64 / m as f64;
+                for j in 1..=m {
+                    let c = j as f64 * width;
+                    cols.push(
+                        (0..n)
+                            .map(|k| (1.0 - (k as f64 - c).abs() / width).max(0.0))
+                            .collect(),
+                    );
+                }
+            }
+            Some(_) => {
+                let t: Vec<f64> = (0..n).map(|k| k as f64 * dt / self.ctx.t_ref).collect();
+                cols.push(t.iter().map(|x| x * x).collect());
+                cols.insert(0, t);
+            }
+            None => {}
         }
-        if self.has(Effect::Creep) {
-            for tau in [sh.creep_tau, sh.creep_tau2] {
+        if let Some(form) = self.form(Effect::Creep) {
+            let taus = match form {
+                Form::Logarithmic => log_creep_state_taus(&self.ctx),
+                _ => [sh.creep_tau, sh.creep_tau2],
+            };
+            for tau in taus {
                 let r = (-dt / tau).exp();
                 let col: Vec<f64> = std::iter::successors(Some(1.0), |p| Some(p * r))
                     .take(n)
@@ -763,13 +1175,21 @@ impl Structure {
         if n == 0 || !finite {
             return failed(0);
         }
-        // The command at the samples (delay), between them (hold), lagged on the fine grid.
-        let mut x = u.to_vec();
+        // The command at the samples (timing, delay, a second-order lag), between them
+        // (hold), a first-order lag on the fine grid.
+        let mut x = shift(u, sh.timing.clamp(-2.0, 2.0));
         if self.has(Effect::Delay) && sh.delay > 0.0 {
             let mut d = Delay::new(sh.delay.clamp(0.0, 1e4) * dt, dt);
             d.settle(u[0]);
             for v in &mut x {
                 *v = d.step(*v);
+            }
+        }
+        if self.has(Effect::InputLag) && sh.lag2_hz.is_finite() {
+            let mut l = Mode::new(sh.lag2_hz, sh.lag2_zeta.max(0.0), dt);
+            l.settle(x[0]);
+            for v in &mut x {
+                *v = l.step(*v);
             }
         }
         let m = osc.substeps(dt);
@@ -795,9 +1215,9 @@ impl Structure {
             Err(at) => return failed(at),
         };
         let mut out = y;
-        if self.has(Effect::Creep) {
+        if let Some(form) = self.form(Effect::Creep) {
             let y = out.clone();
-            for (g, tau) in [(sh.creep_g, sh.creep_tau), (sh.creep_g2, sh.creep_tau2)] {
+            for (g, tau) in sh.creep_elements(form, ctx) {
                 if g != 0.0 {
                     let mut lp = LowPass::new(tau, dt);
                     lp.settle(y[0]);
@@ -858,8 +1278,9 @@ impl Structure {
     }
 
     /// Model output on another record `(u, y)`: coefficients `coef` from training, except the
-    /// record's own initial-state coefficients ([`Self::initial_state_coefs`]), refitted by
-    /// least squares to this record. Returns the output and the coefficients used.
+    /// record's own ones ([`Self::record_coefs`]: offset, drift, initial creep states),
+    /// refitted by least squares to this record. Returns the output and the coefficients
+    /// used.
     pub fn simulate_on(
         &self,
         theta: &[f64],
@@ -868,7 +1289,7 @@ impl Structure {
         y: &[f64],
     ) -> (Vec<f64>, Vec<f64>) {
         let (cols, status) = self.columns(theta, u);
-        let nuisance = self.initial_state_coefs();
+        let nuisance = self.record_coefs();
         let mut c = coef.to_vec();
         let n = u.len().min(y.len());
         if !nuisance.is_empty() && status == Status::Ok {
@@ -945,11 +1366,50 @@ impl Structure {
         let lin = self.linear_names();
         let at = |name: &str| lin.iter().position(|n| *n == name).map_or(0.0, |i| coef[i]);
         let dt = self.ctx.dt;
-        for &e in &self.effects {
-            match e {
-                Effect::Delay => v.push(("delay_s".into(), sh.delay * dt)),
-                Effect::InputLag => v.push(("lag_tau_s".into(), sh.lag)),
-                Effect::Saturation => v.push((
+        v.push(("timing_offset_s".into(), sh.timing * dt));
+        let hz = |x: f64| if x.is_finite() { x } else { f64::INFINITY };
+        for (&e, &form) in self.effects.iter().zip(&self.forms) {
+            match (e, form) {
+                (Effect::Delay, _) => v.push(("delay_s".into(), sh.delay * dt)),
+                (Effect::InputLag, Form::SecondOrder) => {
+                    v.push(("lag_cutoff_hz".into(), hz(sh.lag2_hz)));
+                    v.push(("lag_zeta".into(), sh.lag2_zeta));
+                }
+                (Effect::InputLag, _) => v.push(("lag_tau_s".into(), sh.lag)),
+                (Effect::Saturation, Form::Smooth) => v.push((
+                    "saturation_scale_input".into(),
+                    if sh.sat_k > 0.0 {
+                        self.ctx.u_ref / sh.sat_k
+                    } else {
+                        f64::INFINITY
+                    },
+                )),
+                (Effect::Saturation, Form::Cubic) => {
+                    v.push(("saturation_cubic".into(), sh.sat_cubic))
+                }
+                (Effect::Asymmetry, Form::Direction) => {
+                    v.push(("asymmetry_direction".into(), sh.dir_a))
+                }
+                (Effect::Creep, Form::Logarithmic) => {
+                    v.push(("creep_gain_per_decade".into(), sh.creep_log))
+                }
+                (Effect::Dynamics, Form::TwoModes) if self.placement == Placement::After => {
+                    let f = if sh.mode_p > 0.0 {
+                        1.0 / (2.0 * std::f64::consts::PI * sh.mode_p)
+                    } else {
+                        f64::INFINITY
+                    };
+                    v.push(("mode_freq_hz".into(), f));
+                    v.push(("mode_zeta".into(), sh.zeta));
+                    v.push(("mode2_freq_hz".into(), hz(sh.mode2_hz)));
+                    v.push(("mode2_zeta".into(), sh.mode2_zeta));
+                    v.push(("mode2_share".into(), sh.mode2_share));
+                }
+                (Effect::OffsetDrift, Form::Spline) => v.push((
+                    "drift_knot_spacing_s".into(),
+                    self.ctx.t_ref / spline_segments(&self.ctx) as f64,
+                )),
+                (Effect::Saturation, _) => v.push((
                     "saturation_limit_input".into(),
                     if sh.sat_c > 0.0 {
                         self.ctx.u_ref / sh.sat_c
@@ -957,21 +1417,21 @@ impl Structure {
                         f64::INFINITY
                     },
                 )),
-                Effect::Asymmetry => {
+                (Effect::Asymmetry, _) => {
                     v.push(("asymmetry_q_per_input".into(), sh.q / self.ctx.u_ref))
                 }
-                Effect::RateDependence => {
+                (Effect::RateDependence, _) => {
                     v.push(("rate_rho".into(), sh.rho));
                     v.push(("rate_tau_s".into(), sh.tau_r));
                 }
-                Effect::Creep => {
+                (Effect::Creep, _) => {
                     v.push(("creep_gain".into(), sh.creep_g));
                     v.push(("creep_tau_s".into(), sh.creep_tau));
                     v.push(("creep_gain_slow".into(), sh.creep_g2));
                     v.push(("creep_tau_slow_s".into(), sh.creep_tau2));
                 }
-                Effect::Dynamics if self.placement == Placement::Feedback => {}
-                Effect::Dynamics => {
+                (Effect::Dynamics, _) if self.placement == Placement::Feedback => {}
+                (Effect::Dynamics, _) => {
                     let f = if sh.mode_p > 0.0 {
                         1.0 / (2.0 * std::f64::consts::PI * sh.mode_p)
                     } else {
@@ -980,7 +1440,7 @@ impl Structure {
                     v.push(("mode_freq_hz".into(), f));
                     v.push(("mode_zeta".into(), sh.zeta));
                 }
-                Effect::OffsetDrift => {
+                (Effect::OffsetDrift, _) => {
                     let t = self.ctx.t_ref;
                     v.push(("drift_per_s".into(), at("drift_a1") / t));
                     v.push(("drift_per_s2".into(), at("drift_a2") / (t * t)));
@@ -1105,25 +1565,25 @@ mod tests {
         let nested = plain.embed(&theta, &all);
         let ext = all.fit_linear(&nested, &u, &y);
         // Offset-drift and creep add free columns (drift, initial creep states), so their
-        // cost can only be lower; the others equal the plain model's.
+        // cost can only be lower; the others equal the plain model's, in every form.
         assert!(ext.cost <= base.cost * (1.0 + 1e-12));
         for e in Effect::ALL {
-            if matches!(e, Effect::OffsetDrift | Effect::Creep) {
-                let one = Structure::new(&[e], Some(1.0), ctx);
+            for &form in e.forms() {
+                let one = Structure::with_forms(&[(e, form)], Some(1.0), ctx, Placement::After);
+                assert_eq!(one.form(e), Some(form));
                 let f = one.fit_linear(&plain.embed(&theta, &one), &u, &y);
-                assert!(f.cost <= base.cost * (1.0 + 1e-12), "{}", e.name());
-                continue;
+                if matches!(e, Effect::OffsetDrift | Effect::Creep) {
+                    assert!(f.cost <= base.cost * (1.0 + 1e-12), "{}", one.label());
+                    continue;
+                }
+                assert!(
+                    (f.cost - base.cost).abs() <= 1e-10 * base.cost,
+                    "{}: {} vs {}",
+                    one.label(),
+                    f.cost,
+                    base.cost
+                );
             }
-            let one = Structure::new(&[e], Some(1.0), ctx);
-            let th = plain.embed(&theta, &one);
-            let f = one.fit_linear(&th, &u, &y);
-            assert!(
-                (f.cost - base.cost).abs() <= 1e-10 * base.cost,
-                "{}: {} vs {}",
-                e.name(),
-                f.cost,
-                base.cost
-            );
         }
     }
 
@@ -1201,6 +1661,239 @@ mod tests {
             assert!(rms < 2e-6, "{ov}: rms {rms}");
             assert!((fit.coef[0] - gain * 0.0103).abs() < 1e-3, "{ov}");
         }
+    }
+
+    /// The theta of structure `st` at neutral with the named values set.
+    fn theta_with(st: &Structure, values: &[(&str, f64)]) -> Vec<f64> {
+        st.specs()
+            .iter()
+            .map(|s| {
+                values
+                    .iter()
+                    .find(|v| v.0 == s.name)
+                    .map_or(s.neutral, |v| v.1)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn timing_moves_the_input_by_whole_and_fractional_samples() {
+        let dt = 1e-3;
+        let u = sine(900, 3.0, dt);
+        let ctx = Context::from_training(&u, dt);
+        let st = Structure::new(&[], Some(1.0), ctx);
+        let shape = [("log10_s", -0.4), ("w", 0.6)];
+        let coef = [0.15, 0.01, 0.05];
+        // One sample earlier is the next sample (the last one held).
+        let (early, _) = st.simulate(
+            &theta_with(&st, &[shape[0], shape[1], ("timing_samples", -1.0)]),
+            &coef,
+            &u,
+        );
+        let mut next = u[1..].to_vec();
+        next.push(u[u.len() - 1]);
+        let (want, _) = st.simulate(&theta_with(&st, &shape), &coef, &next);
+        for (a, b) in early.iter().zip(&want).skip(1) {
+            assert!((a - b).abs() < 1e-12, "{a} {b}");
+        }
+        // Half a sample later is the mean of neighbours, before the hysteresis.
+        let half: Vec<f64> = (0..u.len())
+            .map(|k| 0.5 * (u[k] + u[k.saturating_sub(1)]))
+            .collect();
+        let (late, _) = st.simulate(
+            &theta_with(&st, &[shape[0], shape[1], ("timing_samples", 0.5)]),
+            &coef,
+            &u,
+        );
+        let (want, _) = st.simulate(&theta_with(&st, &shape), &coef, &half);
+        for (a, b) in late.iter().zip(&want) {
+            assert!((a - b).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn saturation_forms_are_their_formulas() {
+        // The memoryless forms equal the plain model driven by the transformed input.
+        let dt = 1e-3;
+        let u = sine(900, 3.0, dt);
+        let ctx = Context::from_training(&u, dt);
+        let plain = Structure::new(&[], Some(1.0), ctx);
+        let shape = [("log10_s", -0.4), ("w", 0.6)];
+        let coef = [0.15, 0.01, 0.05];
+        let r = ctx.u_ref;
+        type Formula = Box<dyn Fn(f64) -> f64>;
+        let cases: [(Form, &str, f64, Formula); 3] = [
+            (
+                Form::Hard,
+                "sat_level",
+                0.8,
+                Box::new(move |x: f64| x.clamp(-0.8 * r, 0.8 * r)),
+            ),
+            (
+                Form::Smooth,
+                "sat_smooth_k",
+                1.3,
+                Box::new(move |x: f64| r / 1.3 * (1.3 * x / r).tanh()),
+            ),
+            (
+                Form::Cubic,
+                "sat_cubic",
+                0.2,
+                Box::new(move |x: f64| x - 0.2 * x.powi(3) / (r * r)),
+            ),
+        ];
+        for (form, name, value, formula) in cases {
+            let st = Structure::with_forms(
+                &[(Effect::Saturation, form)],
+                Some(1.0),
+                ctx,
+                Placement::After,
+            );
+            let (got, _) = st.simulate(
+                &theta_with(&st, &[shape[0], shape[1], (name, value)]),
+                &coef,
+                &u,
+            );
+            let x: Vec<f64> = u.iter().map(|&v| formula(v)).collect();
+            let (want, _) = plain.simulate(&theta_with(&plain, &shape), &coef, &x);
+            let worst = got
+                .iter()
+                .zip(&want)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(worst < 1e-12, "{}: {worst}", form.name());
+            // And the form does change the output.
+            let (neutral, _) = st.simulate(&theta_with(&st, &shape), &coef, &u);
+            assert!(
+                got.iter().zip(&neutral).any(|(a, b)| (a - b).abs() > 1e-4),
+                "{}",
+                form.name()
+            );
+        }
+    }
+
+    #[test]
+    fn rich_forms_nest_their_simple_ones_and_act() {
+        let dt = 1e-3;
+        let u = sine(3000, 2.0, dt);
+        let ctx = Context::from_training(&u, dt);
+        let shape = [("log10_s", -0.4), ("w", 0.6)];
+        let coef = [0.15, 0.01, 0.05];
+        // Two modes with no share of the second are the one mode.
+        let one = Structure::new(&[Effect::Dynamics], Some(1.0), ctx);
+        let two = one.extended_with(Effect::Dynamics, Form::TwoModes);
+        assert_eq!(two.label(), "bouc-wen+dynamics[two-modes]");
+        let m = [
+            ("mode_log10_hz", 80f64.log10()),
+            ("mode_log10_zeta", 0.05f64.log10()),
+        ];
+        let (a, _) = one.simulate(
+            &theta_with(&one, &[shape[0], shape[1], m[0], m[1]]),
+            &coef,
+            &u,
+        );
+        let th2 = one.embed(&theta_with(&one, &[shape[0], shape[1], m[0], m[1]]), &two);
+        let (b, _) = two.simulate(&th2, &coef, &u);
+        assert_eq!(a, b);
+        // Every non-default form moves the output away from the plain model.
+        let plain = Structure::new(&[], Some(1.0), ctx);
+        let (base, _) = plain.simulate(&theta_with(&plain, &shape), &coef, &u);
+        type Act<'a> = (Effect, Form, Vec<(&'a str, f64)>);
+        let acts: [Act; 5] = [
+            (
+                Effect::InputLag,
+                Form::SecondOrder,
+                vec![("lag2_log10_hz", 30f64.log10())],
+            ),
+            (Effect::Asymmetry, Form::Direction, vec![("asym_dir", 0.2)]),
+            (Effect::RateDependence, Form::Gain, vec![("rate_rho", 0.5)]),
+            (
+                Effect::Creep,
+                Form::Logarithmic,
+                vec![("creep_log_gain", 0.05)],
+            ),
+            (
+                Effect::Dynamics,
+                Form::TwoModes,
+                vec![
+                    m[0],
+                    m[1],
+                    ("mode2_log10_hz", 150f64.log10()),
+                    ("mode2_share", 0.5),
+                ],
+            ),
+        ];
+        for (e, form, values) in acts {
+            let st = Structure::with_forms(&[(e, form)], Some(1.0), ctx, Placement::After);
+            let mut v = values.clone();
+            v.extend(shape);
+            let (out, status) = st.simulate(&theta_with(&st, &v), &coef, &u);
+            assert_eq!(status, Status::Ok, "{}", st.label());
+            let diff = out
+                .iter()
+                .zip(&base)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(diff > 1e-4, "{}: {diff}", st.label());
+        }
+    }
+
+    #[test]
+    fn logarithmic_creep_grows_evenly_per_decade_after_a_step() {
+        let dt = 1e-3;
+        let n = 40_000;
+        let u: Vec<f64> = (0..n).map(|k| if k < 10 { 0.0 } else { 1.0 }).collect();
+        let ctx = Context::from_training(&u, dt);
+        let st = Structure::with_forms(
+            &[(Effect::Creep, Form::Logarithmic)],
+            Some(1.0),
+            ctx,
+            Placement::After,
+        );
+        // A purely elastic actuator (no hysteresis: α = 0), creep 2 % per decade.
+        let th = theta_with(&st, &[("creep_log_gain", 0.02)]);
+        let mut coef = vec![0.0; st.linear_names().len()];
+        coef[0] = 1.0;
+        let (y, _) = st.simulate(&th, &coef, &u);
+        // Growth over each decade inside the band (0.1-1 s, 1-10 s) is about the same.
+        let at = |t: f64| y[10 + (t / dt) as usize];
+        let (d1, d2) = (at(1.0) - at(0.1), at(10.0) - at(1.0));
+        assert!(d1 > 0.01 && d2 > 0.01, "{d1} {d2}");
+        assert!((d1 / d2 - 1.0).abs() < 0.35, "{d1} {d2}");
+    }
+
+    #[test]
+    fn spline_drift_recovers_a_piecewise_linear_drift_and_belongs_to_the_record() {
+        let dt = 1e-2;
+        let u = sine(2000, 0.5, dt);
+        let ctx = Context::from_training(&u, dt);
+        let plain = Structure::new(&[], Some(1.0), ctx);
+        let theta = theta_with(&plain, &[("log10_s", -0.4), ("w", 0.6)]);
+        let (y0, _) = plain.simulate(&theta, &[0.15, 0.0, 0.05], &u);
+        // A wander through the spline's own knots (8 segments over samples 0..=1999).
+        let knots = [0.0, 0.3, -0.2, 0.1, 0.4, 0.0, -0.3, 0.2, 0.1];
+        let drift = |k: usize| {
+            let x = k as f64 / (1999.0 / 8.0);
+            let j = (x.floor() as usize).min(7);
+            knots[j] + (x - j as f64) * (knots[j + 1] - knots[j])
+        };
+        let y: Vec<f64> = y0
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + 1e-2 * drift(k))
+            .collect();
+        let st = Structure::with_forms(
+            &[(Effect::OffsetDrift, Form::Spline)],
+            Some(1.0),
+            ctx,
+            Placement::After,
+        );
+        assert_eq!(spline_segments(&ctx), 8);
+        let fit = st.fit_linear(&plain.embed(&theta, &st), &u, &y);
+        assert!(fit.cost < 1e-20, "{}", fit.cost);
+        let names = st.linear_names();
+        let rec: Vec<&str> = st.record_coefs().iter().map(|&i| names[i]).collect();
+        assert!(rec.contains(&"d0") && rec.contains(&"drift_k8") && !rec.contains(&"d_e"));
     }
 
     #[test]
