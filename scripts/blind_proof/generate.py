@@ -393,6 +393,7 @@ def main(argv=None):
     ap.add_argument("--nulls", type=int, default=0)
     ap.add_argument("--ci", action="store_true", help="8 singles (one per effect), 2 pairs, 2 nulls, 5-8 s at <= 2 kHz")
     ap.add_argument("--only", type=str, default=None, help="comma-separated case indices to (re)generate")
+    ap.add_argument("--jobs", type=int, default=1, help="cases generated at once (processes)")
     a = ap.parse_args(argv)
     if a.ci:
         a.singles, a.pairs, a.nulls = 8, 2, 2
@@ -401,12 +402,20 @@ def main(argv=None):
         keep = {int(x) for x in a.only.split(",")}
         cases = [c for c in cases if c[0] in keep]
     os.makedirs(a.out, exist_ok=True)
-    for index, effects in cases:
-        t = write_case(a.out, a.master_seed, index, effects, a.ci)
+    t0 = time.perf_counter()
+    if a.jobs > 1:
+        from concurrent.futures import ProcessPoolExecutor
+        with ProcessPoolExecutor(max_workers=a.jobs) as ex:
+            futs = [(i, e, ex.submit(write_case, a.out, a.master_seed, i, e, a.ci)) for i, e in cases]
+            done = [(i, e, f.result()) for i, e, f in futs]
+    else:
+        done = ((i, e, write_case(a.out, a.master_seed, i, e, a.ci)) for i, e in cases)
+    for index, effects, t in done:
         print(f"case-{index:04d} {'+'.join(effects) or 'none':28s} "
               f"{'/'.join(t['forms'].values()) or '-':28s} fs={t['fs_hz']:.0f} "
               f"target={t['target_ratio']:.2f} achieved={t['achieved_ratio_linearised']:.2f} "
               f"{'' if t['target_reached'] else '(not reached) '}{t['generate_s']:.1f}s", flush=True)
+    print(f"{len(cases)} cases in {time.perf_counter() - t0:.1f} s -> {a.out}")
 
 
 if __name__ == "__main__":
