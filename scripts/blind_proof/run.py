@@ -60,6 +60,11 @@ def main(argv=None):
     ap.add_argument("--score-only", action="store_true", help="only score the diagnoses that exist")
     ap.add_argument("--report", default=None)
     ap.add_argument("--json", default=None)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    for i, x in enumerate(argv[:-1]):  # "--extra-args '--bootstrap 9'": a value that starts with a dash
+        if x == "--extra-args":
+            argv[i:i + 2] = ["--extra-args=" + argv[i + 1]]
+            break
     a = ap.parse_args(argv)
     dirs = sorted(d for d in glob.glob(os.path.join(a.cases, "case-*")) if os.path.isfile(os.path.join(d, "truth.json")))
     if not dirs:

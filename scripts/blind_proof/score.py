@@ -29,6 +29,19 @@ def named_set(diagnosis):
     return sorted({normalise(n) for n in diagnosis.get("left_out", [])})
 
 
+def generator_notes(truth):
+    """What the generator flags about a case: target not reached, sizes outside the nominal range or at a bound."""
+    notes = []
+    if truth.get("effects") and not truth.get("target_reached", True):
+        notes.append("target not reached")
+    for n, e in (truth.get("effect_settings") or {}).items():
+        if e.get("in_nominal_range") is False:
+            notes.append(f"{n} outside nominal range")
+        if e.get("at_bound"):
+            notes.append(f"{n} at calibration bound")
+    return notes
+
+
 def rate(k, n):
     lo, hi = wilson(k, n)
     return {"k": k, "n": n, "rate": (k / n) if n else None, "lo": lo, "hi": hi}
@@ -94,7 +107,9 @@ def score(results):
         rel = [x["baseline"] / x["target"] for x in eff_r]
         out["baseline_over_target"] = {"median": statistics.median(rel), "min": min(rel), "max": max(rel)}
     out["failed"] = [{"id": r["id"], "truth": r["truth"]["effects"], "forms": r["truth"]["forms"],
-                      "named": r["named"], **r["ratios"]} for r in done if not r["exact"]]
+                      "named": r["named"], "notes": generator_notes(r["truth"]), **r["ratios"]}
+                     for r in done if not r["exact"]]
+    out["generator_flags"] = {r["id"]: generator_notes(r["truth"]) for r in done if generator_notes(r["truth"])}
     return out
 
 
@@ -148,8 +163,12 @@ def markdown(s, title="Blind proof of optbench diagnose"):
     if not s["failed"]:
         L.append("none")
     else:
-        L += ["| case | truth (forms) | named | target | tool baseline |", "|---|---|---|---|---|"]
+        L += ["| case | truth (forms) | named | target | linearised | tool baseline | generator notes |",
+              "|---|---|---|---|---|---|---|"]
         for f in s["failed"]:
             tr = ", ".join(f"{e} ({f['forms'][e]})" for e in f["truth"]) or "none"
-            L.append(f"| {f['id']} | {tr} | {', '.join(f['named']) or 'none'} | {_num(f['target'])} | {_num(f['baseline'])} |")
+            L.append(f"| {f['id']} | {tr} | {', '.join(f['named']) or 'none'} | {_num(f['target'])} | "
+                     f"{_num(f['linearised'])} | {_num(f['baseline'])} | {'; '.join(f['notes'])} |")
+    L += ["", f"Cases the generator flags: {len(s.get('generator_flags', {}))}"
+          + "".join(f"\n- {k}: {'; '.join(v)}" for k, v in s.get("generator_flags", {}).items())]
     return "\n".join(L) + "\n"

@@ -61,6 +61,10 @@ class TestWilson(unittest.TestCase):
         self.assertEqual(s["spurious"], {"delay": 1})
         self.assertEqual(s["wall_s"]["worst_case"], "b")
         self.assertIn("| creep |", score.markdown(s))
+        t = truth(["dynamics"])
+        t.update(target_reached=False, effect_settings={"dynamics": {"in_nominal_range": False, "at_bound": True}})
+        self.assertEqual(len(score.generator_notes(t)), 3)
+        self.assertEqual(score.generator_notes(truth([])), [])
 
 
 class TestSimulator(unittest.TestCase):
