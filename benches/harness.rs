@@ -87,6 +87,7 @@ fn msga_threads(c: &mut Criterion) {
                         optimizer: &cfg,
                         budget: 4000,
                         stop_value: None,
+                        stall: None,
                         seed: TrialSeed::from_u64(3),
                     })
                 })

@@ -156,6 +156,7 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
         optimizer: optimizer.as_ref(),
         budget: req.budget,
         stop_value: None,
+        stall: None,
         seed: TrialSeed::derive(req.seed, &req.model, &req.optimizer, 0),
     });
 

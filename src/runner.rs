@@ -78,6 +78,7 @@ pub fn run_planned(suite: &Suite, t: &PlannedTrial) -> TrialRecord {
         optimizer: opt.config.as_ref(),
         budget: obj.budget,
         stop_value: obj.stop_value(),
+        stall: None,
         seed: suite.seed_of(t),
     })
 }

@@ -423,6 +423,7 @@ fn msga_threads(cfg: &BenchConfig, migration_lag: usize) -> f64 {
             optimizer: &opt,
             budget,
             stop_value: None,
+            stall: None,
             seed: TrialSeed::from_u64(1),
         });
         start.elapsed().as_secs_f64()

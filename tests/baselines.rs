@@ -31,6 +31,7 @@ fn trial(
         optimizer: cfg,
         budget,
         stop_value: Some(stop),
+        stall: None,
         seed: TrialSeed::from_u64(seed),
     })
 }
@@ -117,6 +118,7 @@ fn lbfgs_polish_refines_a_global_optimizers_best_point() {
                 optimizer: cfg,
                 budget: 20_000,
                 stop_value: None,
+                stall: None,
                 seed: TrialSeed::from_u64(seed),
             })
         };

@@ -38,6 +38,7 @@ fn fit(obj: Arc<dyn Objective>, opt: &dyn OptimizerConfig, budget: u64, seed: u6
         optimizer: opt,
         budget,
         stop_value: None,
+        stall: None,
         seed: TrialSeed::from_u64(seed),
     })
     .best_x
@@ -215,6 +216,7 @@ fn penalised_evaluations_are_counted() {
         optimizer: &opt,
         budget: 400,
         stop_value: None,
+        stall: None,
         seed: TrialSeed::from_u64(3),
     });
     assert_eq!(r.nonfinite, 0);

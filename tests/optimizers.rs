@@ -28,6 +28,7 @@ fn trial(
         optimizer,
         budget,
         stop_value,
+        stall: None,
         seed: TrialSeed::from_u64(seed),
     })
 }

@@ -285,6 +285,7 @@ impl ModelFitConfig {
             optimizer: &pso,
             budget: self.budget,
             stop_value: None,
+            stall: None,
             seed: *seed,
         });
         // The fit normalises by the record's largest |u| and |y|; take the same scales and

@@ -3,12 +3,12 @@
 //! counted by the [`crate::harness::Evaluator`]); the linear coefficients are solved by
 //! least squares inside each evaluation.
 
-use crate::harness::{TrialSeed, TrialSpec, run_trial};
+use crate::harness::{Stall, TrialSeed, TrialSpec, run_trial};
 use crate::objective::{Bounds, Objective};
 use crate::optimizer::nelder_mead::NelderMead;
 use crate::optimizer::pso::PsoConfig;
 use crate::optimizer::{Optimizer, OptimizerConfig};
-use crate::physics::structure::{LinearFit, Structure};
+use crate::physics::structure::{LinearFit, Projection, Structure};
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -18,6 +18,7 @@ pub struct StructureObjective {
     u: Arc<Vec<f64>>,
     y: Arc<Vec<f64>>,
     bounds: Bounds,
+    projection: Projection,
 }
 
 impl StructureObjective {
@@ -28,7 +29,15 @@ impl StructureObjective {
             st.specs().iter().map(|s| s.upper).collect(),
         )
         .expect("structure bounds are valid");
-        StructureObjective { st, u, y, bounds }
+        let n = u.len().min(y.len());
+        let projection = st.projection(&y[..n]);
+        StructureObjective {
+            st,
+            u,
+            y,
+            bounds,
+            projection,
+        }
     }
 }
 
@@ -42,7 +51,9 @@ impl Objective for StructureObjective {
     }
 
     fn evaluate(&self, x: &[f64]) -> f64 {
-        self.st.fit_linear(x, &self.u, &self.y).cost
+        self.st
+            .fit_linear_projected(x, &self.u, &self.y, &self.projection)
+            .cost
     }
 
     /// A swarm's simulations in parallel (each point on its own, so the values do not
@@ -259,6 +270,7 @@ pub fn fit(
             optimizer: &seeded,
             budget: budget.global,
             stop_value: None,
+            stall: None,
             seed: TrialSeed::derive(seed, &label, "pso", 0),
         });
         evaluations += rec.evaluations;
@@ -280,6 +292,12 @@ pub fn fit(
                 },
                 budget: budget.polish,
                 stop_value: None,
+                // Converged: the last window of evaluations moved BIC (N ln SSE) by less
+                // than 0.01, far below any decision margin.
+                stall: Some(Stall {
+                    window: 60 + 15 * best.len() as u64,
+                    rel: 0.01 / u.len().min(y.len()).max(1) as f64,
+                }),
                 seed: TrialSeed::derive(seed, &label, "nelder-mead", round as u64),
             });
             evaluations += rec.evaluations;
@@ -365,6 +383,7 @@ pub fn initial_state_for(
         },
         budget,
         stop_value: None,
+        stall: None,
         seed: TrialSeed::derive(seed, &label, "nelder-mead", 0),
     });
     let mut th = f.theta.clone();

@@ -63,6 +63,15 @@ fn sanitize(f: f64) -> f64 {
     }
 }
 
+/// A convergence stop: the trial ends once `window` evaluations in a row have not improved
+/// the best value by more than `rel` times its magnitude. For local polishes, where the
+/// budget is an upper bound rather than the experiment's unit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stall {
+    pub window: u64,
+    pub rel: f64,
+}
+
 /// Counts, limits and records the evaluations of one trial.
 pub struct Evaluator {
     objective: Arc<dyn Objective>,
@@ -76,6 +85,9 @@ pub struct Evaluator {
     trace: Trace,
     /// Values at or above this are penalties ([`Objective::penalty_threshold`]).
     penalty: f64,
+    stall: Option<Stall>,
+    /// The best value when it last improved by more than the stall tolerance, and when.
+    stall_ref: (f64, u64),
 }
 
 impl Evaluator {
@@ -104,7 +116,15 @@ impl Evaluator {
                 penalised: 0,
                 stopped_at_target: false,
             },
+            stall: None,
+            stall_ref: (f64::INFINITY, 0),
         }
+    }
+
+    /// This evaluator with a convergence stop ([`Stall`]).
+    pub fn with_stall(mut self, stall: Option<Stall>) -> Self {
+        self.stall = stall;
+        self
     }
 
     pub fn bounds(&self) -> &Bounds {
@@ -173,6 +193,15 @@ impl Evaluator {
         {
             self.stopped = true;
             self.trace.stopped_at_target = true;
+        }
+        if let Some(st) = self.stall {
+            let (r, at) = self.stall_ref;
+            let best = self.trace.best;
+            if !r.is_finite() || best < r - st.rel * r.abs() {
+                self.stall_ref = (best, self.used);
+            } else if self.used - at >= st.window {
+                self.stopped = true;
+            }
         }
     }
 

@@ -5,6 +5,6 @@ pub mod evaluator;
 pub mod seed;
 pub mod trial;
 
-pub use evaluator::{Evaluated, Evaluator, Grant, Trace};
+pub use evaluator::{Evaluated, Evaluator, Grant, Stall, Trace};
 pub use seed::TrialSeed;
 pub use trial::{TrialRecord, TrialSpec, run_trial};

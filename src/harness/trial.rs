@@ -1,6 +1,6 @@
 //! One trial: an optimizer against an objective for a budget, from one seed.
 
-use super::{Evaluator, TrialSeed};
+use super::{Evaluator, Stall, TrialSeed};
 use crate::objective::Objective;
 use crate::optimizer::OptimizerConfig;
 use serde::{Deserialize, Deserializer, Serialize};
@@ -17,6 +17,8 @@ pub struct TrialSpec<'a> {
     pub budget: u64,
     /// End the trial once a value <= this is seen.
     pub stop_value: Option<f64>,
+    /// End the trial once the best value has stalled (a local polish that has converged).
+    pub stall: Option<Stall>,
     pub seed: TrialSeed,
 }
 
@@ -74,7 +76,8 @@ pub fn run_trial(spec: TrialSpec<'_>) -> TrialRecord {
     let mut optimizer = spec
         .optimizer
         .start(spec.objective.bounds(), spec.budget, &spec.seed);
-    let mut ev = Evaluator::new(Arc::clone(&spec.objective), spec.budget, spec.stop_value);
+    let mut ev = Evaluator::new(Arc::clone(&spec.objective), spec.budget, spec.stop_value)
+        .with_stall(spec.stall);
     while !ev.done() {
         let before = ev.used();
         optimizer.step(&mut ev);

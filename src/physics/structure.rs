@@ -924,6 +924,14 @@ impl Structure {
     /// Simulates the regressor columns on input `u`: `[v, 1, -(1+ρr) α-free g]` after the
     /// post-hysteresis filters, plus the drift columns; column-major, `cols[j][k]`.
     fn columns(&self, theta: &[f64], u: &[f64]) -> (Vec<Vec<f64>>, Status) {
+        let (varying, status) = self.varying_columns(theta, u);
+        (self.assemble(varying, u.len()), status)
+    }
+
+    /// The columns that depend on the shape, in coefficient order without
+    /// [`Self::fixed_columns`]: `[v, g, creep states]` (or `[y, creep states]` in the
+    /// feedback placement).
+    fn varying_columns(&self, theta: &[f64], u: &[f64]) -> (Vec<Vec<f64>>, Status) {
         let n = u.len();
         let sh = self.shape(theta);
         if self.placement == Placement::Feedback {
@@ -935,7 +943,7 @@ impl Structure {
         let mut cg = vec![0.0; n];
         let mut status = Status::Ok;
         if n == 0 {
-            return (vec![cv, vec![], cg], status);
+            return (vec![cv, cg], status);
         }
         let finite_shape = sh.is_finite();
         let u = &shift(
@@ -1100,16 +1108,16 @@ impl Structure {
             cv[k] = a;
             cg[k] = b;
         }
-        let mut cols = vec![cv, vec![1.0; n], cg];
-        cols.extend(self.tail_columns(&sh, n));
+        let mut cols = vec![cv, cg];
+        cols.extend(self.creep_state_columns(&sh, n));
         (cols, status)
     }
 
-    /// The drift columns (`t/T, (t/T)²`, or the spline's hat functions over the record's
-    /// own length) and the creep elements' initial-state decays.
-    fn tail_columns(&self, sh: &Shape, n: usize) -> Vec<Vec<f64>> {
+    /// The columns that do not depend on the shape: the constant and the drift (`t/T,
+    /// (t/T)²`, or the spline's hat functions over the record's own length).
+    fn fixed_columns(&self, n: usize) -> Vec<Vec<f64>> {
         let dt = self.ctx.dt;
-        let mut cols = Vec::new();
+        let mut cols = vec![vec![1.0; n]];
         match self.form(Effect::OffsetDrift) {
             Some(Form::Spline) => {
                 // Hats at knots 1..=m over [0, n-1]; the constant column spans knot 0.
@@ -1126,11 +1134,48 @@ impl Structure {
             }
             Some(_) => {
                 let t: Vec<f64> = (0..n).map(|k| k as f64 * dt / self.ctx.t_ref).collect();
-                cols.push(t.iter().map(|x| x * x).collect());
-                cols.insert(0, t);
+                let t2 = t.iter().map(|x| x * x).collect();
+                cols.push(t);
+                cols.push(t2);
             }
             None => {}
         }
+        cols
+    }
+
+    /// Indices of [`Self::fixed_columns`] among the coefficients (the constant is always 1;
+    /// the drift follows the hysteretic column after the hysteresis, the constant in the
+    /// feedback placement).
+    fn fixed_indices(&self) -> Vec<usize> {
+        let drift = self.fixed_columns(0).len() - 1;
+        let first = match self.placement {
+            Placement::After => 3,
+            Placement::Feedback => 2,
+        };
+        std::iter::once(1).chain(first..first + drift).collect()
+    }
+
+    /// All columns in coefficient order from the shape-dependent ones `varying`.
+    fn assemble(&self, varying: Vec<Vec<f64>>, n: usize) -> Vec<Vec<f64>> {
+        let fixed_at = self.fixed_indices();
+        let total = varying.len() + fixed_at.len();
+        let mut fixed = self.fixed_columns(n).into_iter();
+        let mut var = varying.into_iter();
+        (0..total)
+            .map(|i| {
+                if fixed_at.contains(&i) {
+                    fixed.next().expect("fixed column")
+                } else {
+                    var.next().expect("varying column")
+                }
+            })
+            .collect()
+    }
+
+    /// The creep elements' initial-state decays (shape-dependent columns after the drift).
+    fn creep_state_columns(&self, sh: &Shape, n: usize) -> Vec<Vec<f64>> {
+        let dt = self.ctx.dt;
+        let mut cols = Vec::new();
         if let Some(form) = self.form(Effect::Creep) {
             let taus = match form {
                 Form::Logarithmic => log_creep_state_taus(&self.ctx),
@@ -1151,7 +1196,7 @@ impl Structure {
         cols
     }
 
-    /// [`Self::columns`] for the feedback placement: `[creep(y), 1, tail]`, `y` the unit-free
+    /// [`Self::varying_columns`] for the feedback placement: `[creep(y), creep states]`, `y` the unit-free
     /// oscillator's displacement driven by the chain's output over `u_ref`.
     fn columns_feedback(&self, sh: &Shape, u: &[f64]) -> (Vec<Vec<f64>>, Status) {
         let n = u.len();
@@ -1166,9 +1211,9 @@ impl Structure {
             n: sh.n,
         };
         let finite = sh.is_finite();
-        let tail = self.tail_columns(sh, n);
+        let tail = self.creep_state_columns(sh, n);
         let failed = |at: usize| {
-            let mut cols = vec![vec![0.0; n], vec![1.0; n]];
+            let mut cols = vec![vec![0.0; n]];
             cols.extend(tail.iter().cloned());
             (cols, Status::Unstable { at })
         };
@@ -1231,7 +1276,7 @@ impl Structure {
         if out.iter().any(|v| !v.is_finite()) {
             return failed(0);
         }
-        let mut cols = vec![out, vec![1.0; n]];
+        let mut cols = vec![out];
         cols.extend(tail);
         (cols, Status::Ok)
     }
@@ -1241,10 +1286,30 @@ impl Structure {
     /// `cost_cap(y) (2 - at/N)`, above every stable cost and higher the earlier it fails.
     pub fn fit_linear(&self, theta: &[f64], u: &[f64], y: &[f64]) -> LinearFit {
         let len = u.len().min(y.len());
+        self.fit_linear_projected(theta, u, y, &self.projection(&y[..len]))
+    }
+
+    /// The shape-independent part of [`Self::fit_linear`] on record `y`, computed once per
+    /// fit: each evaluation then orthogonalises only the few shape-dependent columns (a
+    /// spline drift adds up to 16 fixed ones).
+    pub fn projection(&self, y: &[f64]) -> Projection {
+        Projection::new(self.fixed_indices(), &self.fixed_columns(y.len()), y)
+    }
+
+    /// [`Self::fit_linear`] with the fixed columns' [`Projection`] of the same `y`.
+    pub fn fit_linear_projected(
+        &self,
+        theta: &[f64],
+        u: &[f64],
+        y: &[f64],
+        proj: &Projection,
+    ) -> LinearFit {
+        let len = u.len().min(y.len());
         let (u, y) = (&u[..len], &y[..len]);
+        debug_assert_eq!(proj.y_perp.len(), len);
         let cap = cost_cap(y);
-        let (cols, status) = self.columns(theta, u);
-        let ncoef = cols.len();
+        let (varying, status) = self.varying_columns(theta, u);
+        let ncoef = varying.len() + proj.fixed_at.len();
         if let Status::Unstable { at } = status {
             return LinearFit {
                 coef: vec![0.0; ncoef],
@@ -1252,13 +1317,7 @@ impl Structure {
                 status,
             };
         }
-        let coef = least_squares(&cols, y);
-        let mut j = 0.0;
-        for k in 0..len {
-            let m: f64 = cols.iter().zip(&coef).map(|(c, b)| c[k] * b).sum();
-            let e = y[k] - m;
-            j += 0.5 * e * e;
-        }
+        let (coef, j) = proj.solve(varying);
         let cost = if j.is_finite() { j.min(cap) } else { cap };
         LinearFit { coef, cost, status }
     }
@@ -1451,55 +1510,180 @@ impl Structure {
     }
 }
 
-/// Least squares `min |y - Σ b_j c_j|` by modified Gram-Schmidt with one
-/// reorthogonalisation; columns that are (numerically) in the span of earlier ones get 0.
-pub fn least_squares(cols: &[Vec<f64>], y: &[f64]) -> Vec<f64> {
+/// Least squares with some columns fixed across evaluations (the constant, the drift):
+/// their orthonormal basis and the data with them projected out, so an evaluation
+/// orthogonalises only its shape-dependent columns against them (block Gram-Schmidt;
+/// the same solution as [`least_squares`] on all columns).
+#[derive(Clone, Debug)]
+pub struct Projection {
+    /// Positions of the fixed columns among the coefficients.
+    fixed_at: Vec<usize>,
+    /// Orthonormal basis of the fixed columns (None: dependent on the earlier ones).
+    q: Vec<Option<Vec<f64>>>,
+    /// `R` of the fixed columns' QR (upper triangle).
+    r: Vec<Vec<f64>>,
+    /// `y` minus its projection on the fixed columns.
+    y_perp: Vec<f64>,
+    /// `Qᵀ y`.
+    qty: Vec<f64>,
+}
+
+/// `v` minus its projections on `q` (twice: Gram-Schmidt with reorthogonalisation), the
+/// coefficients added to `r`.
+fn orthogonalise(v: &mut [f64], q: &[Option<Vec<f64>>], r: &mut [f64]) {
+    for _ in 0..2 {
+        for (i, qi) in q.iter().enumerate() {
+            let Some(qi) = qi.as_ref() else { continue };
+            let d = dot(qi, v);
+            r[i] += d;
+            v.iter_mut().zip(qi).for_each(|(x, a)| *x -= d * a);
+        }
+    }
+}
+
+/// `Σ aᵢ bᵢ` in eight interleaved partial sums: a single running sum waits on each add's
+/// latency, and these dot products over whole records are most of a fit's linear algebra.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut acc = [0.0f64; 8];
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in ca.zip(cb) {
+        for i in 0..8 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    acc.iter().sum::<f64>() + tail
+}
+
+/// Gram-Schmidt QR of `cols` (first `n` rows): orthonormal columns (None where a column
+/// depends on the earlier ones) and `R`.
+#[allow(clippy::type_complexity)]
+fn qr(cols: &[Vec<f64>], n: usize) -> (Vec<Option<Vec<f64>>>, Vec<Vec<f64>>) {
     let m = cols.len();
-    let n = y.len();
     let mut q: Vec<Option<Vec<f64>>> = Vec::with_capacity(m);
     let mut r = vec![vec![0.0; m]; m];
-    let mut keep = vec![false; m];
+    let mut rj = vec![0.0; m];
     for j in 0..m {
         let mut v = cols[j][..n].to_vec();
-        let norm0 = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-        for _ in 0..2 {
-            for (i, qi) in q.iter().enumerate() {
-                let Some(qi) = qi.as_ref() else { continue };
-                let d: f64 = qi.iter().zip(&v).map(|(a, b)| a * b).sum();
-                r[i][j] += d;
-                v.iter_mut().zip(qi).for_each(|(x, a)| *x -= d * a);
-            }
+        let norm0 = dot(&v, &v).sqrt();
+        rj.fill(0.0);
+        orthogonalise(&mut v, &q, &mut rj);
+        for (i, x) in rj.iter().enumerate().take(j) {
+            r[i][j] = *x;
         }
-        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let norm = dot(&v, &v).sqrt();
         if norm > 1e-10 * norm0 && norm.is_finite() && norm > 0.0 {
             r[j][j] = norm;
             v.iter_mut().for_each(|x| *x /= norm);
-            keep[j] = true;
             q.push(Some(v));
         } else {
             q.push(None);
         }
     }
-    let qty: Vec<f64> = q
-        .iter()
-        .map(|qi| {
-            qi.as_ref()
-                .map_or(0.0, |qi| qi.iter().zip(y).map(|(a, b)| a * b).sum())
-        })
-        .collect();
+    (q, r)
+}
+
+/// Solves `R b = rhs` for the kept columns of a [`qr`] (dropped ones get 0); all zeros if
+/// anything is not finite.
+fn back_substitute(q: &[Option<Vec<f64>>], r: &[Vec<f64>], rhs: &[f64]) -> Vec<f64> {
+    let m = q.len();
     let mut b = vec![0.0; m];
     for j in (0..m).rev() {
-        if !keep[j] {
+        if q[j].is_none() {
             continue;
         }
         let s: f64 = (j + 1..m).map(|k| r[j][k] * b[k]).sum();
-        b[j] = (qty[j] - s) / r[j][j];
+        b[j] = (rhs[j] - s) / r[j][j];
     }
     if b.iter().all(|x| x.is_finite()) {
         b
     } else {
         vec![0.0; m]
     }
+}
+
+impl Projection {
+    /// The projection of `y` off `fixed` (columns of `y`'s length), which sit at
+    /// `fixed_at` among the coefficients.
+    pub fn new(fixed_at: Vec<usize>, fixed: &[Vec<f64>], y: &[f64]) -> Self {
+        let m = fixed.len();
+        let (q, r) = qr(fixed, y.len());
+        let mut y_perp = y.to_vec();
+        let mut qty = vec![0.0; m];
+        orthogonalise(&mut y_perp, &q, &mut qty);
+        Projection {
+            fixed_at,
+            q,
+            r,
+            y_perp,
+            qty,
+        }
+    }
+
+    /// Coefficients (in coefficient order) and `Σ e²/2` for the shape-dependent columns
+    /// `varying` (in their order, without the fixed ones).
+    fn solve(&self, mut varying: Vec<Vec<f64>>) -> (Vec<f64>, f64) {
+        let m = self.q.len();
+        let n = self.y_perp.len();
+        // Qᵀ V, and V with the fixed columns projected out.
+        let qtv: Vec<Vec<f64>> = varying
+            .iter_mut()
+            .map(|v| {
+                let mut c = vec![0.0; m];
+                let norm0 = dot(&v[..n], &v[..n]).sqrt();
+                orthogonalise(&mut v[..n], &self.q, &mut c);
+                // A column inside the fixed span is dependent: drop it, as least squares
+                // on all columns would.
+                let norm = dot(&v[..n], &v[..n]).sqrt();
+                if norm.is_nan() || norm <= 1e-10 * norm0 {
+                    v.fill(0.0);
+                }
+                c
+            })
+            .collect();
+        let bv = least_squares(&varying, &self.y_perp);
+        let mut e = self.y_perp.clone();
+        for (v, b) in varying.iter().zip(&bv) {
+            if *b != 0.0 {
+                e.iter_mut().zip(v).for_each(|(x, c)| *x -= b * c);
+            }
+        }
+        let cost = 0.5 * dot(&e, &e);
+        // R b_f = Qᵀ y - Qᵀ V b_v.
+        let rhs: Vec<f64> = (0..m)
+            .map(|i| self.qty[i] - qtv.iter().zip(&bv).map(|(c, b)| c[i] * b).sum::<f64>())
+            .collect();
+        let bf = back_substitute(&self.q, &self.r, &rhs);
+        let total = bv.len() + m;
+        let mut coef = Vec::with_capacity(total);
+        let (mut fi, mut vi) = (bf.into_iter(), bv.into_iter());
+        for i in 0..total {
+            coef.push(if self.fixed_at.contains(&i) {
+                fi.next().unwrap_or(0.0)
+            } else {
+                vi.next().unwrap_or(0.0)
+            });
+        }
+        (coef, cost)
+    }
+}
+
+/// Least squares `min |y - Σ b_j c_j|` by modified Gram-Schmidt with one
+/// reorthogonalisation; columns that are (numerically) in the span of earlier ones get 0.
+pub fn least_squares(cols: &[Vec<f64>], y: &[f64]) -> Vec<f64> {
+    let (q, r) = qr(cols, y.len());
+    let qty: Vec<f64> = q
+        .iter()
+        .map(|qi| qi.as_ref().map_or(0.0, |qi| dot(qi, y)))
+        .collect();
+    back_substitute(&q, &r, &qty)
 }
 
 #[cfg(test)]
@@ -2081,6 +2265,59 @@ mod tests {
                 lf.cost.is_finite() && lf.cost <= 2.0 * cost_cap(&y),
                 "{th:?}"
             );
+        }
+    }
+
+    #[test]
+    fn projected_fit_equals_least_squares_on_all_columns() {
+        let dt = 1e-3;
+        let u = sine(3000, 2.0, dt);
+        let ctx = Context::from_training(&u, dt);
+        for (parts, placement) in [
+            (vec![(Effect::OffsetDrift, Form::Spline)], Placement::After),
+            (
+                vec![
+                    (Effect::OffsetDrift, Form::Polynomial),
+                    (Effect::Creep, Form::KelvinVoigt),
+                ],
+                Placement::After,
+            ),
+            (vec![], Placement::After),
+            (
+                vec![(Effect::OffsetDrift, Form::Polynomial)],
+                Placement::Feedback,
+            ),
+        ] {
+            let st = Structure::with_forms(&parts, Some(1.0), ctx, placement);
+            let theta: Vec<f64> = st.specs().iter().map(|s| s.neutral).collect();
+            let y: Vec<f64> = u
+                .iter()
+                .enumerate()
+                .map(|(k, x)| 0.3 * x + 0.1 * (k as f64 * 0.01).sin() + 0.02 * (k % 7) as f64)
+                .collect();
+            let (cols, _) = st.columns(&theta, &u);
+            assert_eq!(cols.len(), st.linear_names().len(), "{}", st.label());
+            let direct = least_squares(&cols, &y);
+            let fit = st.fit_linear(&theta, &u, &y);
+            let e: f64 = (0..u.len())
+                .map(|k| {
+                    let m: f64 = cols.iter().zip(&direct).map(|(c, b)| c[k] * b).sum();
+                    0.5 * (y[k] - m).powi(2)
+                })
+                .sum();
+            assert!(
+                (fit.cost / e - 1.0).abs() < 1e-9,
+                "{} {} {e}",
+                st.label(),
+                fit.cost
+            );
+            for (a, b) in fit.coef.iter().zip(&direct) {
+                assert!(
+                    (a - b).abs() <= 1e-7 * (1.0 + b.abs()),
+                    "{}: {a} vs {b}",
+                    st.label()
+                );
+            }
         }
     }
 
