@@ -357,6 +357,32 @@ mod tests {
     }
 
     #[test]
+    fn stall_ends_a_trial_only_after_a_window_without_real_gain() {
+        let mut ev = Evaluator::new(sphere(1), 1000, None).with_stall(Some(Stall {
+            window: 10,
+            rel: 1e-3,
+        }));
+        // Improving by 10 % per evaluation: never stalls.
+        let mut x = 1.0;
+        for _ in 0..50 {
+            x *= 0.95;
+            assert!(ev.evaluate(&[x]).is_some());
+        }
+        assert!(!ev.done());
+        // Gains below the tolerance (1e-5 relative) do not reset the window: the tenth
+        // evaluation after the last real gain ends the trial, not a budget.
+        for k in 1..=10 {
+            x *= 1.0 - 1e-5;
+            assert!(ev.evaluate(&[x]).is_some());
+            assert_eq!(ev.done(), k == 10, "after {k}");
+        }
+        assert_eq!(ev.evaluate(&[0.0]), None);
+        let t = ev.finish();
+        assert_eq!(t.evaluations, 60);
+        assert!(!t.stopped_at_target);
+    }
+
+    #[test]
     fn stops_exactly_at_budget() {
         let mut ev = Evaluator::new(sphere(2), 5, None);
         let pts = vec![1.0; 2 * 4];
