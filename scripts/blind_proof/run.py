@@ -60,6 +60,10 @@ def main(argv=None):
     ap.add_argument("--score-only", action="store_true", help="only score the diagnoses that exist")
     ap.add_argument("--report", default=None)
     ap.add_argument("--json", default=None)
+    ap.add_argument("--min-overall", type=float, default=None,
+                    help="exit 1 if the overall exact-match rate is below this fraction (a regression guard for CI)")
+    ap.add_argument("--max-false-alarms", type=int, default=None,
+                    help="exit 1 if more null cases than this get a name")
     argv = list(sys.argv[1:] if argv is None else argv)
     for i, x in enumerate(argv[:-1]):  # "--extra-args '--bootstrap 9'": a value that starts with a dash
         if x == "--extra-args":
@@ -103,6 +107,17 @@ def main(argv=None):
         with open(a.json, "w") as fh:
             json.dump(s, fh, indent=1)
     print(md)
+    failed = []
+    if any(r["diagnosis"] is None for r in results):
+        failed.append("a case has no diagnosis.json (see its diagnosis/stderr.txt)")
+    ov = s["overall"]
+    if a.min_overall is not None and ov["k"] < a.min_overall * ov["n"]:
+        failed.append(f"overall exact match {ov['k']}/{ov['n']} below {a.min_overall:.0%}")
+    fa = s["nulls_false_alarm"]
+    if a.max_false_alarms is not None and fa["k"] > a.max_false_alarms:
+        failed.append(f"{fa['k']} false alarms on {fa['n']} null cases (allowed {a.max_false_alarms})")
+    if failed:
+        sys.exit("blind proof: " + "; ".join(failed))
 
 
 if __name__ == "__main__":

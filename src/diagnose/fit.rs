@@ -255,6 +255,21 @@ pub fn fit(
                 points.push(p);
             }
         }
+        // And each free coordinate a little off its start, on a log scale: a concealed
+        // effect is small, far below the grid's first cell.
+        for (j, &i) in free.iter().enumerate() {
+            let (lo, hi) = (obj.bounds().lower()[i], obj.bounds().upper()[i]);
+            for f in [1e-3, 3e-3, 1e-2, 3e-2] {
+                for sign in [1.0, -1.0] {
+                    let x = start[j] + sign * f * (hi - lo);
+                    if x >= lo && x <= hi {
+                        let mut p = start.clone();
+                        p[j] = x;
+                        points.push(p);
+                    }
+                }
+            }
+        }
         let seeded = Seeded {
             points,
             inner: PsoConfig {

@@ -552,12 +552,15 @@ fn fit_proposal(
             }
         }
     }
+    let parent_specs = parent.structure.specs();
     let free: Vec<usize> = st
         .specs()
         .iter()
         .enumerate()
         .filter(|(_, s)| {
-            s.effect.is_some_and(|e| p.effects().contains(&e)) || (moved && s.effect.is_none())
+            s.effect.is_some_and(|e| p.effects().contains(&e))
+                || (moved && s.effect.is_none())
+                || !parent_specs.iter().any(|x| x.name == s.name)
         })
         .map(|(i, _)| i)
         .collect();
@@ -1014,8 +1017,15 @@ pub fn diagnose_with_tests(
         let names = f.structure.linear_names();
         let at = |c: &[f64], name: &str| names.iter().position(|n| *n == name).map(|i| c[i]);
         let mut m = BTreeMap::new();
-        if let Some(t) = named(f).get("timing_offset_s") {
-            m.insert("timing_offset_s".to_string(), *t);
+        let params = named(f);
+        for key in [
+            "timing_offset_s",
+            "intersample_curvature",
+            "block_hold_samples",
+        ] {
+            if let Some(t) = params.get(key) {
+                m.insert(key.to_string(), *t);
+            }
         }
         if let Some(o) = at(&f.linear.coef, "d0") {
             m.insert("offset_train".to_string(), o);

@@ -8,7 +8,8 @@
 //!                                                       (rate-dependence scales h)
 //! ```
 //!
-//! - `delay`: transport delay of `d` samples (fractional: linear interpolation).
+//! - `delay`: transport delay of `d` samples, one shift with the timing nuisance (fractional:
+//!   interpolated straight or, with the `intersample_curvature` nuisance, by a cubic).
 //! - `input-lag`: first-order low-pass `τ` on the command (zero-order hold, as a D/A drives
 //!   an amplifier; exact for a staircase command).
 //! - `saturation`: the drive clipped at `±u_ref / c` (`c = 0`: no clipping).
@@ -34,7 +35,7 @@
 //! never NaN.
 
 use super::bouc_wen::{BoucWenKernel, BoucWenParams, cost_cap};
-use super::linear::{Delay, LowPass, Mode};
+use super::linear::{LowPass, Mode};
 pub use super::restoring::Hold;
 use super::restoring::{Oscillator, upsample};
 
@@ -309,6 +310,13 @@ struct Shape {
     g0: f64,
     /// Sub-sample timing of the input (samples; positive: the input acts later).
     timing: f64,
+    /// How the input curves between samples, for fractional shifts: 0 a straight line
+    /// (a ramp or a staircase's average), 1 the cubic through four samples (a smooth,
+    /// band-limited signal).
+    curvature: f64,
+    /// Samples by which the linear blocks' inputs lag the samples (0: a value acts over
+    /// the interval before its sample; 1: a D/A that updates at the sample and holds).
+    block_hold: f64,
     delay: f64,
     lag: f64,
     /// Second-order input lag: natural frequency (Hz; infinite: none) and damping.
@@ -347,6 +355,17 @@ struct Shape {
 }
 
 impl Shape {
+    /// Samples the input acts later by: the timing nuisance plus any transport delay (one
+    /// shift, so both interpolate alike).
+    fn input_shift(&self, st: &Structure) -> f64 {
+        let delay = if st.has(Effect::Delay) {
+            self.delay.clamp(0.0, 1e4)
+        } else {
+            0.0
+        };
+        self.timing.clamp(-2.0, 2.0) + delay
+    }
+
     /// Every parameter finite (unused ones hold finite defaults; `lag2_hz` is infinite
     /// when off).
     fn is_finite(&self) -> bool {
@@ -356,6 +375,8 @@ impl Shape {
             self.n,
             self.g0,
             self.timing,
+            self.curvature,
+            self.block_hold,
             self.delay,
             self.lag,
             self.lag2_zeta,
@@ -447,9 +468,10 @@ fn spline_segments(ctx: &Context) -> usize {
     ((ctx.t_ref / 2.5).round() as usize).clamp(3, 16)
 }
 
-/// `u` shifted by `s` samples (positive: later), by linear interpolation between samples;
-/// beyond the ends the end values hold.
-fn shift(u: &[f64], s: f64) -> Vec<f64> {
+/// `u` shifted by `s` samples (positive: later), interpolated between samples: straight
+/// (`curvature` 0) or by the cubic through the four nearest samples (1), or between.
+/// Beyond the ends the end values hold.
+fn shift(u: &[f64], s: f64, curvature: f64) -> Vec<f64> {
     let n = u.len();
     if s == 0.0 || n < 2 {
         return u.to_vec();
@@ -458,10 +480,22 @@ fn shift(u: &[f64], s: f64) -> Vec<f64> {
     let frac = s - whole;
     let w = whole as i64;
     let at = |i: i64| u[i.clamp(0, n as i64 - 1) as usize];
+    // Position t in [0, 1] between p1 = u[k-w-1] and p2 = u[k-w]; the cubic is the line
+    // minus t(1-t)/2 times a blend of the two second differences around the interval.
+    let t = 1.0 - frac;
+    let (c0, c1) = (
+        curvature * t * (1.0 - t) / 2.0 * (2.0 - t) / 3.0,
+        curvature * t * (1.0 - t) / 2.0 * (1.0 + t) / 3.0,
+    );
     (0..n as i64)
         .map(|k| {
-            let (a, b) = (at(k - w), at(k - w - 1));
-            a + frac * (b - a)
+            let (p0, p1, p2, p3) = (at(k - w - 2), at(k - w - 1), at(k - w), at(k - w + 1));
+            let line = p1 + t * (p2 - p1);
+            if curvature == 0.0 || frac == 0.0 {
+                line
+            } else {
+                line - c0 * (p0 - 2.0 * p1 + p2) - c1 * (p1 - 2.0 * p2 + p3)
+            }
         })
         .collect()
 }
@@ -567,6 +601,9 @@ impl Structure {
         // the zero-order hold the blocks assume; the sensor may sample anywhere in the
         // interval. So -1 to +0.5 samples belong to the baseline; a longer delay is physics.
         specs.push(spec("timing_samples", -1.0, 0.5, 0.0, None));
+        // Likewise how the input moves between samples, which a fractional shift (timing,
+        // delay) must interpolate: straight (0) or smooth (1).
+        specs.push(spec("intersample_curvature", 0.0, 1.0, 0.0, None));
         let z = (0.005f64.log10(), 1.5f64.log10());
         for &(e, form) in &parts {
             let x = Some(e);
@@ -625,6 +662,16 @@ impl Structure {
                 }
                 (Effect::OffsetDrift, _) => {}
             }
+        }
+        // Where within its interval a sample acts on the linear blocks (lag, creep, modes):
+        // at the interval's end, or held from its start (a D/A). A nuisance, offered only
+        // with such a block (the hysteresis, rate-independent, does not see it), last so a
+        // new effect's own parameters lead its search.
+        let linear_block = parts
+            .iter()
+            .any(|(e, _)| matches!(e, Effect::InputLag | Effect::Creep | Effect::Dynamics));
+        if placement == Placement::After && linear_block {
+            specs.push(spec("block_hold_samples", 0.0, 1.0, 0.0, None));
         }
         let (effects, forms) = parts.into_iter().unzip();
         Structure {
@@ -815,6 +862,8 @@ impl Structure {
             n: self.fixed_n.unwrap_or(1.0),
             g0: 0.0,
             timing: 0.0,
+            curvature: 0.0,
+            block_hold: 0.0,
             delay: 0.0,
             lag: 0.0,
             lag2_hz: f64::INFINITY,
@@ -850,6 +899,8 @@ impl Structure {
                 "n" => sh.n = x,
                 "g0_frac" => sh.g0 = x,
                 "timing_samples" => sh.timing = x,
+                "intersample_curvature" => sh.curvature = x,
+                "block_hold_samples" => sh.block_hold = x,
                 "delay_samples" => sh.delay = x,
                 "lag2_log10_hz" => {
                     sh.lag2_hz = if x >= spec.upper - 1e-9 {
@@ -946,14 +997,11 @@ impl Structure {
             return (vec![cv, cg], status);
         }
         let finite_shape = sh.is_finite();
-        let u = &shift(
-            u,
-            if finite_shape {
-                sh.timing.clamp(-2.0, 2.0)
-            } else {
-                0.0
-            },
-        );
+        let u = &if finite_shape {
+            shift(u, sh.input_shift(self), sh.curvature.clamp(0.0, 1.0))
+        } else {
+            u.to_vec()
+        };
         // Direction asymmetry: the hysteretic slope is 1 + a on rising drive, 1 - a falling.
         let up = self.kernel(&sh, 1.0 + sh.dir_a);
         let down = if sh.dir_a != 0.0 {
@@ -962,8 +1010,6 @@ impl Structure {
             up
         };
         let drive = sh.drive(ctx.u_ref);
-        let mut delay = (self.has(Effect::Delay) && sh.delay > 0.0)
-            .then(|| Delay::new(sh.delay.clamp(0.0, 1e4) * dt, dt));
         let mut lag =
             (self.has(Effect::InputLag) && sh.lag > 0.0).then(|| LowPass::new(sh.lag, dt));
         let mut lag2 = (self.has(Effect::InputLag) && sh.lag2_hz.is_finite())
@@ -1012,9 +1058,6 @@ impl Structure {
 
         // Initial state: every block at rest at the first sample.
         let u0 = u[0];
-        if let Some(d) = &mut delay {
-            d.settle(u0);
-        }
         if let Some(l) = &mut lag {
             l.settle(u0);
         }
@@ -1039,6 +1082,19 @@ impl Structure {
         }
         let bound = 1e6 * (1.0 + ctx.u_ref) * (1.0 + u.iter().fold(0.0f64, |m, x| m.max(x.abs())));
         let mut v_prev = v0;
+        // Previous inputs of the linear blocks, for the hold (`block_hold`): the drive
+        // into the lag; without a lag, the hysteresis output into creep and modes (with a
+        // lag, their inputs are continuous and the exponential hold is exact).
+        let hold = sh.block_hold.clamp(0.0, 1.0);
+        let held = |x: f64, prev: &mut f64| {
+            let r = x - hold * (x - *prev);
+            *prev = x;
+            r
+        };
+        let hold_after = lag.is_none() && hold > 0.0;
+        let mut prev_u = u0;
+        let (mut prev_a0, mut prev_b0) = (v0, -g_init);
+        let (mut prev_am, mut prev_bm) = (k_dc * v0, -k_dc * g_init);
         let step_mode = |m: &mut Mode, x: f64| {
             if exp_tau.is_some() {
                 m.step_exp(x)
@@ -1048,11 +1104,8 @@ impl Structure {
         };
         for k in 0..n {
             let mut x = u[k];
-            if let Some(d) = &mut delay {
-                x = d.step(x);
-            }
             if let Some(l) = &mut lag {
-                x = l.step(x);
+                x = l.step(held(x, &mut prev_u));
             }
             if let Some(l) = &mut lag2 {
                 x = l.step(x);
@@ -1076,7 +1129,11 @@ impl Structure {
             }
             v_prev = v;
             let (mut a, mut b) = (vv, -hv);
-            let (a0, b0) = (a, b);
+            let (a0, b0) = if hold_after && !creep.is_empty() {
+                (held(a, &mut prev_a0), held(b, &mut prev_b0))
+            } else {
+                (a, b)
+            };
             for (gain, ca, cb) in &mut creep {
                 let (la, lb) = if exp_tau.is_some() {
                     (ca.step_exp(a0), cb.step_exp(b0))
@@ -1085,6 +1142,10 @@ impl Structure {
                 };
                 a += *gain * la;
                 b += *gain * lb;
+            }
+            if hold_after && (mode.is_some() || mode2.is_some()) {
+                a = held(a, &mut prev_am);
+                b = held(b, &mut prev_bm);
             }
             match (&mut mode, &mut mode2) {
                 (Some((ma, mb)), Some((na, nb))) => {
@@ -1222,14 +1283,7 @@ impl Structure {
         }
         // The command at the samples (timing, delay, a second-order lag), between them
         // (hold), a first-order lag on the fine grid.
-        let mut x = shift(u, sh.timing.clamp(-2.0, 2.0));
-        if self.has(Effect::Delay) && sh.delay > 0.0 {
-            let mut d = Delay::new(sh.delay.clamp(0.0, 1e4) * dt, dt);
-            d.settle(u[0]);
-            for v in &mut x {
-                *v = d.step(*v);
-            }
-        }
+        let mut x = shift(u, sh.input_shift(self), sh.curvature.clamp(0.0, 1.0));
         if self.has(Effect::InputLag) && sh.lag2_hz.is_finite() {
             let mut l = Mode::new(sh.lag2_hz, sh.lag2_zeta.max(0.0), dt);
             l.settle(x[0]);
@@ -1426,6 +1480,10 @@ impl Structure {
         let at = |name: &str| lin.iter().position(|n| *n == name).map_or(0.0, |i| coef[i]);
         let dt = self.ctx.dt;
         v.push(("timing_offset_s".into(), sh.timing * dt));
+        v.push(("intersample_curvature".into(), sh.curvature));
+        if self.specs.iter().any(|s| s.name == "block_hold_samples") {
+            v.push(("block_hold_samples".into(), sh.block_hold));
+        }
         let hz = |x: f64| if x.is_finite() { x } else { f64::INFINITY };
         for (&e, &form) in self.effects.iter().zip(&self.forms) {
             match (e, form) {
@@ -1892,6 +1950,89 @@ mod tests {
         let (want, _) = st.simulate(&theta_with(&st, &shape), &coef, &half);
         for (a, b) in late.iter().zip(&want) {
             assert!((a - b).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn a_held_input_reaches_the_linear_blocks_one_sample_later() {
+        let dt = 1e-3;
+        let u = sine(800, 7.0, dt);
+        let ctx = Context::from_training(&u, dt);
+        let coef = [0.15, 0.01, 0.05];
+        let shape = [("log10_s", -0.4), ("w", 0.6)];
+        // Through an input lag: a D/A hold is the whole chain one sample later.
+        let lag = Structure::with_forms(
+            &[(Effect::InputLag, Form::FirstOrder)],
+            Some(1.0),
+            ctx,
+            Placement::After,
+        );
+        let tau = ("lag_log10_tau_s", (2e-3f64).log10());
+        assert!(lag.specs().iter().any(|s| s.name == tau.0));
+        let (held, _) = lag.simulate(
+            &theta_with(
+                &lag,
+                &[shape[0], shape[1], tau, ("block_hold_samples", 1.0)],
+            ),
+            &coef,
+            &u,
+        );
+        let mut later = vec![u[0]];
+        later.extend(&u[..u.len() - 1]);
+        let (want, _) = lag.simulate(&theta_with(&lag, &[shape[0], shape[1], tau]), &coef, &later);
+        for (a, b) in held.iter().zip(&want) {
+            assert!((a - b).abs() < 1e-12, "{a} {b}");
+        }
+        // Without a linear block there is nothing to hold (the hysteresis is
+        // rate-independent): the nuisance is not offered.
+        let plain = Structure::new(&[], Some(1.0), ctx);
+        assert!(!plain.specs().iter().any(|s| s.name == "block_hold_samples"));
+        // Through a mode after the hysteresis it moves the output.
+        let mode = Structure::with_forms(
+            &[(Effect::Dynamics, Form::OneMode)],
+            Some(1.0),
+            ctx,
+            Placement::After,
+        );
+        let p = ("mode_log10_hz", 150f64.log10());
+        assert!(mode.specs().iter().any(|s| s.name == p.0));
+        let (c, _) = mode.simulate(&theta_with(&mode, &[shape[0], shape[1], p]), &coef, &u);
+        let (d, _) = mode.simulate(
+            &theta_with(&mode, &[shape[0], shape[1], p, ("block_hold_samples", 1.0)]),
+            &coef,
+            &u,
+        );
+        assert!(c.iter().zip(&d).any(|(x, y)| (x - y).abs() > 1e-6));
+    }
+
+    #[test]
+    fn a_curved_shift_is_exact_for_cubics_and_a_straight_one_for_lines() {
+        let cubic: Vec<f64> = (0..40)
+            .map(|k| {
+                let x = k as f64 * 0.1;
+                1.0 - 0.5 * x + 0.3 * x * x - 0.07 * x * x * x
+            })
+            .collect();
+        let line: Vec<f64> = (0..40).map(|k| 2.0 - 0.3 * k as f64).collect();
+        for s in [0.3, -0.6, 1.45, -1.0] {
+            let c = shift(&cubic, s, 1.0);
+            let l = shift(&line, s, 0.0);
+            // Away from the held ends.
+            for k in 4..36 {
+                let x = (k as f64 - s) * 0.1;
+                let want = 1.0 - 0.5 * x + 0.3 * x * x - 0.07 * x * x * x;
+                assert!(
+                    (c[k] - want).abs() < 1e-12,
+                    "s {s} k {k}: {} vs {want}",
+                    c[k]
+                );
+                assert!((l[k] - (2.0 - 0.3 * (k as f64 - s))).abs() < 1e-12);
+            }
+            // A straight shift of a cubic is not exact (curvature matters).
+            let straight = shift(&cubic, s, 0.0);
+            if s.fract() != 0.0 {
+                assert!((4..36).any(|k| (straight[k] - c[k]).abs() > 1e-4));
+            }
         }
     }
 
