@@ -112,9 +112,10 @@ def drift_shape(rng, e, N, fs):
         t / 10.0 + 0.3 * np.sin(2 * np.pi * t / rng.uniform(20, 60) + rng.uniform(0, 2 * np.pi)))
 
 
-def draw_case(master, index, effects, ci=False):
-    """All random settings of a case (no simulation), from default_rng([master, index])."""
-    rng = np.random.default_rng([master, index])
+def draw_case(master, index, effects, ci=False, attempt=0):
+    """All random settings of a case (no simulation), from default_rng([master, index])
+    (a redraw: [master, index, attempt])."""
+    rng = np.random.default_rng([master, index] if attempt == 0 else [master, index, attempt])
     fs = float(np.exp(rng.uniform(np.log(500.0), np.log(2000.0 if ci else 5000.0))))
     M = max(8, int(math.ceil(8000.0 / fs)))
     lens = [rng.uniform(5.0, 8.0) if ci else rng.uniform(5.0, 40.0) for _ in range(2)]
@@ -194,7 +195,8 @@ class Linearised:
         self.shifted = [base if t == 0 else sim_effects(case, {}, timing=t) for t in taus]
 
     def remainder(self, ytr, yva):
-        best = (np.inf, 0.0)
+        """(validation remainder, timing, training remainder) of the best linearised fit."""
+        best = (np.inf, 0.0, 0.0)
         for tau, (pt, pv) in zip(self.timings, self.shifted):
             dt = ytr - pt
             th = self.pinv @ dt
@@ -202,7 +204,9 @@ class Linearised:
             r = r - r.mean()
             rem = float(np.sqrt(np.mean(r * r)))
             if rem < best[0]:
-                best = (rem, float(tau))
+                rt = dt - self.Jt @ th
+                rt = rt - rt.mean()
+                best = (rem, float(tau), float(np.sqrt(np.mean(rt * rt))))
         return best
 
 
@@ -257,19 +261,20 @@ def calibrate(case, lin, sigma):
         def f(s, n=n):
             e2 = dict(effects[n], size=s)
             return lin.remainder(*sim_effects(case, {n: e2}))
-        s, (rem, tau), ok = bisect_log(f, share, *e["bounds"])
+        s, (rem, tau, _), ok = bisect_log(f, share, *e["bounds"])
         e["size"] = s
         info[n] = {"alone_ratio": _ratio(rem, sigma), "alone_target_ratio": _ratio(share, sigma),
                    "alone_reached": bool(ok), "alone_timing_samples": tau}
     if len(effects) > 1:
         def g(k):
             return lin.remainder(*sim_effects(case, scaled(effects, k)))
-        k, (rem, tau), ok = bisect_log(g, target_rem, 1 / 8, 8.0)
+        k, (rem, tau, rem_t), ok = bisect_log(g, target_rem, 1 / 8, 8.0)
         effects.update(scaled(effects, k))
         info["joint_factor"] = k
     else:
-        rem, tau = lin.remainder(*sim_effects(case, effects))
+        rem, tau, rem_t = lin.remainder(*sim_effects(case, effects))
         ok = all(v["alone_reached"] for v in info.values())
+    info["train_signature_sigma"] = rem_t / sigma
     return _ratio(rem, sigma), tau, bool(ok), info
 
 
@@ -295,25 +300,36 @@ def write_csv(path, fs, u, y):
         np.savetxt(fh, np.column_stack([t, u, y]), fmt="%.9g", delimiter=",")
 
 
+# A case whose training record barely excites its effect (the linearised plain fit's
+# training remainder below this many sigma; e.g. a rate-dependent gain under a triangle,
+# whose rate is constant) cannot be diagnosed from that record by any method that fits
+# the training record only: it is redrawn, as a lab would choose another excitation.
+MIN_TRAIN_SIGNATURE = 0.3
+MAX_ATTEMPTS = 6
+
+
 def build_case(master, index, effects, ci=False):
     """Draw, calibrate and simulate one case; return (truth, [(u, y) train, validate])."""
     t0 = time.perf_counter()
-    case = draw_case(master, index, effects, ci)
-    fs, M = case["fs"], case["oversample"]
-    tr = case["records"][0]
-    vref = sim.GAIN * max(np.max(np.abs(r["fine"])) for r in case["records"])
-    rate_norm = 1.0
-    if "rate-dependence" in case["effects"]:
-        rate_norm = sim.plain_drive_rate_rms(tr["fine"], 1 / fs, M, case["effects"]["rate-dependence"]["tau"])
-    case["consts"] = {"vref": float(vref), "rate_norm": float(rate_norm)}
-    lin = Linearised(case)
-    stroke = float(np.ptp(lin.base[0]))
-    sigma = case["noise_fraction"] * stroke
-    qstep = case["quant_fraction"] * sigma
-    if effects:
-        achieved, tau, reached, info = calibrate(case, lin, sigma)
-    else:
-        achieved, tau, reached, info = 1.0, 0.0, True, {}
+    for attempt in range(MAX_ATTEMPTS):
+        case = draw_case(master, index, effects, ci, attempt)
+        fs, M = case["fs"], case["oversample"]
+        tr = case["records"][0]
+        vref = sim.GAIN * max(np.max(np.abs(r["fine"])) for r in case["records"])
+        rate_norm = 1.0
+        if "rate-dependence" in case["effects"]:
+            rate_norm = sim.plain_drive_rate_rms(tr["fine"], 1 / fs, M, case["effects"]["rate-dependence"]["tau"])
+        case["consts"] = {"vref": float(vref), "rate_norm": float(rate_norm)}
+        lin = Linearised(case)
+        stroke = float(np.ptp(lin.base[0]))
+        sigma = case["noise_fraction"] * stroke
+        qstep = case["quant_fraction"] * sigma
+        if effects:
+            achieved, tau, reached, info = calibrate(case, lin, sigma)
+        else:
+            achieved, tau, reached, info = 1.0, 0.0, True, {}
+        if info.get("train_signature_sigma", 1.0) >= MIN_TRAIN_SIGNATURE:
+            break
     clean = sim_effects(case, case["effects"])
     nrng = np.random.default_rng(case["noise_rng_seed"])
     out = []
@@ -351,6 +367,7 @@ def build_case(master, index, effects, ci=False):
         "quant_step_mm": qstep, "quant_fraction_of_sigma": case["quant_fraction"],
         "target_ratio": case["target_ratio"], "achieved_ratio_linearised": achieved,
         "calibration_timing_samples": tau, "target_reached": reached, "joint_factor": info.get("joint_factor"),
+        "train_signature_sigma": info.get("train_signature_sigma"), "attempts": attempt + 1,
         "generate_s": time.perf_counter() - t0,
     }
     return _jsonable(truth), out

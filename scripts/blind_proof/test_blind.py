@@ -154,13 +154,22 @@ class TestGenerator(unittest.TestCase):
     def test_calibration_independent_recheck(self):
         # recompute the linearised ratio from the written truth with a fresh case draw
         truth, _ = self.built[0]
-        case = gen.draw_case(5, 0, ["creep"], ci=True)
+        case = gen.draw_case(5, 0, ["creep"], ci=True, attempt=truth["attempts"] - 1)
         case["consts"] = truth["consts"]
         case["effects"]["creep"]["size"] = truth["sizes"]["creep"]
         lin = gen.Linearised(case)
-        rem, _ = lin.remainder(*gen.sim_effects(case, case["effects"]))
+        rem, _, rem_train = lin.remainder(*gen.sim_effects(case, case["effects"]))
+        self.assertAlmostEqual(rem_train / truth["noise_sigma_mm"], truth["train_signature_sigma"], places=6)
         sig = truth["noise_sigma_mm"]
         self.assertAlmostEqual(math.sqrt(sig ** 2 + rem ** 2) / sig, truth["achieved_ratio_linearised"], places=6)
+
+    def test_training_record_excites_the_effect(self):
+        for truth, _ in self.built.values():
+            if truth["effects"]:
+                self.assertTrue(truth["train_signature_sigma"] >= gen.MIN_TRAIN_SIGNATURE
+                                or truth["attempts"] == gen.MAX_ATTEMPTS, truth["effects"])
+            else:
+                self.assertEqual(truth["attempts"], 1)
 
     def test_noise_and_quantisation(self):
         truth, recs = self.built[1]
