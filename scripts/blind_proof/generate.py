@@ -301,10 +301,10 @@ def write_csv(path, fs, u, y):
 
 
 # A case whose training record barely excites its effect (the linearised plain fit's
-# training remainder below this many sigma; e.g. a rate-dependent gain under a triangle,
+# training remainder below this many sigma, too little to pin its parameters; e.g. a rate-dependent gain under a triangle,
 # whose rate is constant) cannot be diagnosed from that record by any method that fits
 # the training record only: it is redrawn, as a lab would choose another excitation.
-MIN_TRAIN_SIGNATURE = 0.3
+MIN_TRAIN_SIGNATURE = 0.5
 MAX_ATTEMPTS = 6
 
 

@@ -629,6 +629,31 @@ fn judge(
     }
 }
 
+/// A polish of every parameter to convergence (the stall stop ends it early).
+fn repolish_budget(opts: &Options) -> Budget {
+    Budget {
+        global: 0,
+        swarm: 1,
+        polish: 2 * opts.candidate_budget.polish,
+        rounds: 4,
+        global_window: 0,
+    }
+}
+
+/// `f` polished again from its optimum ([`repolish_budget`]), evaluated.
+fn repolish(f: &Fitted, d: &Data, opts: &Options, salt: u64) -> Evaluated {
+    let g = fit::fit(
+        &f.structure,
+        &d.ut,
+        &d.yt,
+        Some(&f.theta),
+        None,
+        repolish_budget(opts),
+        opts.seed.wrapping_add(salt),
+    );
+    evaluate(g, d, opts)
+}
+
 /// How a proposal's parameters reach another record.
 fn transfer(p: &Proposal) -> String {
     let per: Vec<&str> = p
@@ -815,14 +840,33 @@ pub fn diagnose_with_tests(
     while round < opts.max_rounds {
         round += 1;
         let parent = current.fitted.structure.clone();
-        let pool = candidate_pool(&parent, opts);
+        let mut pool = candidate_pool(&parent, opts);
         if pool.is_empty() {
             break;
         }
-        let tried: Vec<Evaluated> = pool
+        // A new placement (the hysteresis inside the mechanical feedback) is searched
+        // afresh on a fine integration grid, the costliest candidate by far: it is asked
+        // only when a mode after the hysteresis already improves the training fit.
+        let moves = |p: &Proposal| p.placement != parent.placement();
+        let (placed, mut rest): (Vec<Proposal>, Vec<Proposal>) =
+            pool.drain(..).partition(|p| moves(p));
+        let mut tried: Vec<Evaluated> = rest
             .par_iter()
             .map(|p| fit_proposal(&current.fitted, p, &[], &d, opts, round))
             .collect();
+        let dynamics_helps = rest.iter().zip(&tried).any(|(p, c)| {
+            p.effects().contains(&Effect::Dynamics)
+                && bic(&c.fitted, nt) - bic(&current.fitted, nt) < -opts.bic_margin
+        });
+        if dynamics_helps {
+            tried.par_extend(
+                placed
+                    .par_iter()
+                    .map(|p| fit_proposal(&current.fitted, p, &[], &d, opts, round)),
+            );
+            rest.extend(placed);
+        }
+        let pool = rest;
         let band = current_summary.validate_band;
         let mut record = |p: &Proposal, c: &Evaluated, v: &Verdict, candidates: &mut Vec<_>| {
             evaluations += c.fitted.evaluations;
@@ -848,15 +892,18 @@ pub fn diagnose_with_tests(
             });
             candidates.len() - 1
         };
-        // Among the candidates that pass the gate, the one the validation record supports
-        // best: training BIC alone favours flexible forms that do not predict.
+        // Among the candidates that pass the gate, the one all the data support best: its
+        // training BIC plus its information criterion on the validation record it was not
+        // fitted to (training BIC alone favours flexible forms that do not predict; the
+        // validation record alone cannot tell forms that predict alike).
         let mut best: Option<(usize, usize, f64)> = None;
         let mut singles = Vec::new();
         for (i, (p, c)) in pool.iter().zip(&tried).enumerate() {
             let v = judge(c, &current, band, opts.bic_margin, nt, &unit);
             let at = record(p, c, &v, &mut candidates);
-            if v.passed && best.is_none_or(|b| c.validate_ic < b.2) {
-                best = Some((i, at, c.validate_ic));
+            let evidence = v.delta_bic + c.validate_ic;
+            if v.passed && best.is_none_or(|b| evidence < b.2) {
+                best = Some((i, at, evidence));
             }
             singles.push((i, v.delta_bic));
         }
@@ -913,8 +960,9 @@ pub fn diagnose_with_tests(
             for (i, (p, c)) in proposals.iter().zip(&fitted).enumerate() {
                 let v = judge(c, &current, band, 2.0 * opts.bic_margin, nt, &unit);
                 let at = record(p, c, &v, &mut candidates);
-                if v.passed && best.is_none_or(|b| c.validate_ic < b.2) {
-                    best = Some((i, at, c.validate_ic));
+                let evidence = v.delta_bic + c.validate_ic;
+                if v.passed && best.is_none_or(|b| evidence < b.2) {
+                    best = Some((i, at, evidence));
                 }
             }
             chosen = best.map(|(i, at, _)| (proposals[i].clone(), fitted[i].clone(), at));
@@ -926,7 +974,16 @@ pub fn diagnose_with_tests(
                 left_out.push(e.name().to_string());
             }
         }
-        current = c;
+        // The next round's parent, polished to convergence: otherwise every candidate
+        // of the next round gains from the parent's own unfinished polish, and the first
+        // to pass is a passenger.
+        let polished = repolish(&c.fitted, &d, opts, 200 + round as u64);
+        evaluations += polished.fitted.evaluations;
+        current = if polished.fitted.linear.cost <= c.fitted.linear.cost {
+            polished
+        } else {
+            c
+        };
         current_summary = summary(&current, &d, &boot, opts.seed);
     }
     // Backward: an accepted effect the final model no longer needs (removing it leaves the
@@ -951,10 +1008,7 @@ pub fn diagnose_with_tests(
                     &d.yt,
                     Some(&start),
                     None,
-                    Budget {
-                        global: 0,
-                        ..opts.candidate_budget
-                    },
+                    repolish_budget(opts),
                     opts.seed.wrapping_add(100 + round as u64),
                 );
                 evaluate(f, &d, opts)

@@ -2478,38 +2478,3 @@ mod tests {
         assert_eq!(coef[2], 0.0);
     }
 }
-#[cfg(test)]
-mod dbg_tmp {
-    use super::*;
-    #[test]
-    #[ignore]
-    fn dbg_rate_cost() {
-        let text = std::fs::read_to_string("/tmp/bp_ci2/case-0004/train.csv").unwrap();
-        let (mut t, mut u, mut y) = (vec![], vec![], vec![]);
-        for l in text.lines().skip(1) {
-            let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
-            t.push(v[0]);
-            u.push(v[1]);
-            y.push(v[2]);
-        }
-        let dt = t[1] - t[0];
-        let ctx = Context::from_training(&u, dt);
-        let ua = std::sync::Arc::new(u.clone());
-        let ya = std::sync::Arc::new(y.clone());
-        let plain = Structure::new(&[], Some(1.0), ctx);
-        let bb = crate::diagnose::Options::default().baseline_budget;
-        let p = crate::diagnose::fit::fit(&plain, &ua, &ya, None, None, bb, 1);
-        println!("plain: {} {:?}", p.linear.cost, p.theta);
-        for form in [Form::Gain, Form::Width] {
-            let st = Structure::with_forms(&[(Effect::RateDependence, form)], Some(1.0), ctx, Placement::After);
-            let mut th = plain.embed(&p.theta, &st);
-            let i = st.specs().iter().position(|s| s.name == "rate_rho").unwrap();
-            for s in st.specs() { println!("  {} [{}, {}] {}", s.name, s.lower, s.upper, s.neutral); }
-            for rho in [0.0, 0.001, 0.003, 0.01, 0.03, 0.1] {
-                th[i] = rho;
-                let f = st.fit_linear(&th, &u, &y);
-                println!("{form:?} rho {rho}: {} {:?}", f.cost, f.status);
-            }
-        }
-    }
-}
