@@ -846,7 +846,8 @@ pub fn diagnose_with_tests(
         }
         // A new placement (the hysteresis inside the mechanical feedback) is searched
         // afresh on a fine integration grid, the costliest candidate by far: it is asked
-        // only when a mode after the hysteresis already improves the training fit.
+        // only when a mode after the hysteresis passes the gate (so a mode is about to be
+        // named and where it sits matters).
         let moves = |p: &Proposal| p.placement != parent.placement();
         let (placed, mut rest): (Vec<Proposal>, Vec<Proposal>) =
             pool.drain(..).partition(|p| moves(p));
@@ -854,9 +855,10 @@ pub fn diagnose_with_tests(
             .par_iter()
             .map(|p| fit_proposal(&current.fitted, p, &[], &d, opts, round))
             .collect();
+        let band = current_summary.validate_band;
         let dynamics_helps = rest.iter().zip(&tried).any(|(p, c)| {
             p.effects().contains(&Effect::Dynamics)
-                && bic(&c.fitted, nt) - bic(&current.fitted, nt) < -opts.bic_margin
+                && judge(c, &current, band, opts.bic_margin, nt, &unit).passed
         });
         if dynamics_helps {
             tried.par_extend(
@@ -867,7 +869,6 @@ pub fn diagnose_with_tests(
             rest.extend(placed);
         }
         let pool = rest;
-        let band = current_summary.validate_band;
         let mut record = |p: &Proposal, c: &Evaluated, v: &Verdict, candidates: &mut Vec<_>| {
             evaluations += c.fitted.evaluations;
             candidates.push(Candidate {

@@ -97,7 +97,7 @@ pub fn kinds() -> Vec<CaseKind> {
     let k = |truth, size| CaseKind { truth, size };
     vec![
         k(None, 0.0),
-        k(Some(Effect::Dynamics), 220.0),
+        k(Some(Effect::Dynamics), 185.0),
         k(Some(Effect::InputLag), 150.0),
         k(Some(Effect::Delay), 1e-3),
         k(Some(Effect::Creep), 0.025),
