@@ -461,20 +461,17 @@ struct Proposal {
 }
 
 impl Proposal {
+    /// `a+b` of one name per part.
+    fn joined(&self, name: fn(&(Effect, Form)) -> &'static str) -> String {
+        self.parts.iter().map(name).collect::<Vec<_>>().join("+")
+    }
+
     fn name(&self) -> String {
-        self.parts
-            .iter()
-            .map(|p| p.0.name())
-            .collect::<Vec<_>>()
-            .join("+")
+        self.joined(|p| p.0.name())
     }
 
     fn form(&self) -> String {
-        self.parts
-            .iter()
-            .map(|p| p.1.name())
-            .collect::<Vec<_>>()
-            .join("+")
+        self.joined(|p| p.1.name())
     }
 
     fn effects(&self) -> Vec<Effect> {

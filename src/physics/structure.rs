@@ -195,6 +195,13 @@ pub struct ParamSpec {
     pub effect: Option<Effect>,
 }
 
+impl ParamSpec {
+    /// `10^x` for a log-frequency whose top of range means "off" (no mode, no lag).
+    fn hz_unless_top(&self, x: f64) -> Option<f64> {
+        (x < self.upper - 1e-9).then(|| 10f64.powf(x))
+    }
+}
+
 /// Scales of the training data that make the shape parameters unit-free.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Context {
@@ -902,25 +909,13 @@ impl Structure {
                 "intersample_curvature" => sh.curvature = x,
                 "block_hold_samples" => sh.block_hold = x,
                 "delay_samples" => sh.delay = x,
-                "lag2_log10_hz" => {
-                    sh.lag2_hz = if x >= spec.upper - 1e-9 {
-                        f64::INFINITY
-                    } else {
-                        10f64.powf(x)
-                    }
-                }
+                "lag2_log10_hz" => sh.lag2_hz = spec.hz_unless_top(x).unwrap_or(f64::INFINITY),
                 "lag2_log10_zeta" => sh.lag2_zeta = 10f64.powf(x),
                 "sat_smooth_k" => sh.sat_k = x,
                 "sat_cubic" => sh.sat_cubic = x,
                 "asym_dir" => sh.dir_a = x,
                 "creep_log_gain" => sh.creep_log = x,
-                "mode2_log10_hz" => {
-                    sh.mode2_hz = if x >= spec.upper - 1e-9 {
-                        f64::INFINITY
-                    } else {
-                        10f64.powf(x)
-                    }
-                }
+                "mode2_log10_hz" => sh.mode2_hz = spec.hz_unless_top(x).unwrap_or(f64::INFINITY),
                 "mode2_log10_zeta" => sh.mode2_zeta = 10f64.powf(x),
                 "mode2_share" => sh.mode2_share = x,
                 "lag_log10_tau_s" => {
@@ -940,11 +935,9 @@ impl Structure {
                 "creep_g2" => sh.creep_g2 = x,
                 "creep_log10_tau2_s" => sh.creep_tau2 = 10f64.powf(x),
                 "mode_log10_hz" => {
-                    sh.mode_p = if x >= spec.upper - 1e-9 {
-                        0.0
-                    } else {
-                        1.0 / (2.0 * std::f64::consts::PI * 10f64.powf(x))
-                    }
+                    sh.mode_p = spec
+                        .hz_unless_top(x)
+                        .map_or(0.0, |f| 1.0 / (2.0 * std::f64::consts::PI * f))
                 }
                 "mode_log10_zeta" => sh.zeta = 10f64.powf(x),
                 "fb_log10_hz" => sh.fb_hz = 10f64.powf(x),
