@@ -84,7 +84,7 @@ impl CaseKind {
             }
             Some(Effect::OffsetDrift) => format!("sensor drift {} µm/s", x * 1e3),
             Some(Effect::RateDependence) => {
-                format!("loop width × (1 + {x} r), r = rate / RMS rate, τ_r = 50 ms")
+                format!("hysteretic slope × (1 + {x} r), r = rate / RMS rate, τ_r = 50 ms")
             }
         }
     }
