@@ -176,6 +176,11 @@ pub struct Budget {
     /// The global stage fits only the first this many samples (0: all); the polish always
     /// fits the whole record. Cheap exploration for an expensive model.
     pub global_window: usize,
+    /// A screen (0: none): the polish runs only if the global stage gained at least this
+    /// much over the start, in BIC units (`N ln(start cost / best)`). A nested candidate
+    /// that cannot gain 2 units by its own parameters will not gain the 20-30 it needs to
+    /// pass; most candidates of later rounds are such, and the polish is most of a fit.
+    pub screen: f64,
 }
 
 /// A fitted structure.
@@ -224,6 +229,7 @@ pub fn fit(
     let mut evaluations = 0;
     let all: Vec<usize> = (0..best.len()).collect();
     let free = free.unwrap_or(&all).to_vec();
+    let mut screened_out = false;
     if budget.global > 0 && !free.is_empty() {
         let bounds = Bounds::new(
             free.iter().map(|&i| obj.bounds().lower()[i]).collect(),
@@ -292,8 +298,14 @@ pub fn fit(
         for (&i, &v) in free.iter().zip(&rec.best_x) {
             best[i] = v;
         }
+        // The first evaluation is the start (seeded first).
+        let start_cost = rec.improvements.first().map_or(rec.best, |x| x.1);
+        let n = u.len().min(y.len());
+        let explored = if w > 0 && w < n { w } else { n };
+        let gain = explored as f64 * (start_cost / rec.best).ln();
+        screened_out = budget.screen > 0.0 && !(gain >= budget.screen);
     }
-    if !best.is_empty() {
+    if !best.is_empty() && !screened_out {
         let mut step = 0.05;
         for round in 0..budget.rounds {
             let rec = run_trial(TrialSpec {

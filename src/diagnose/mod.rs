@@ -91,6 +91,7 @@ impl Default for Options {
                 polish: 800,
                 rounds: 3,
                 global_window: 0,
+                screen: 0.0,
             },
             candidate_budget: Budget {
                 global: 300,
@@ -98,6 +99,7 @@ impl Default for Options {
                 polish: 700,
                 rounds: 2,
                 global_window: 0,
+                screen: 2.0,
             },
             placement_budget: Budget {
                 global: 1500,
@@ -105,6 +107,7 @@ impl Default for Options {
                 polish: 700,
                 rounds: 2,
                 global_window: 4096,
+                screen: 0.0,
             },
             max_rounds: 4,
             pair_pool: 3,
@@ -177,6 +180,8 @@ pub struct Candidate {
     pub dropped: bool,
     pub params: BTreeMap<String, f64>,
     pub evidence: String,
+    /// Model evaluations its fit took (the search, the polish and the validation states).
+    pub evaluations: u64,
 }
 
 /// The diagnosis (`diagnosis.json`).
@@ -438,6 +443,7 @@ fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> (Vec
                     polish: opts.candidate_budget.polish / 2,
                     rounds: 1,
                     global_window: 0,
+                    screen: 0.0,
                 },
                 opts.seed ^ (0xb00 + b as u64),
             );
@@ -634,6 +640,7 @@ fn repolish_budget(opts: &Options) -> Budget {
         polish: 2 * opts.candidate_budget.polish,
         rounds: 4,
         global_window: 0,
+        screen: 0.0,
     }
 }
 
@@ -843,8 +850,8 @@ pub fn diagnose_with_tests(
         }
         // A new placement (the hysteresis inside the mechanical feedback) is searched
         // afresh on a fine integration grid, the costliest candidate by far: it is asked
-        // only when a mode after the hysteresis passes the gate (so a mode is about to be
-        // named and where it sits matters).
+        // only when a mode after the hysteresis is the best candidate that passes the gate
+        // (so a mode is about to be named and where it sits matters).
         let moves = |p: &Proposal| p.placement != parent.placement();
         let (placed, mut rest): (Vec<Proposal>, Vec<Proposal>) =
             pool.drain(..).partition(|p| moves(p));
@@ -853,10 +860,15 @@ pub fn diagnose_with_tests(
             .map(|p| fit_proposal(&current.fitted, p, &[], &d, opts, round))
             .collect();
         let band = current_summary.validate_band;
-        let dynamics_helps = rest.iter().zip(&tried).any(|(p, c)| {
-            p.effects().contains(&Effect::Dynamics)
-                && judge(c, &current, band, opts.bic_margin, nt, &unit).passed
-        });
+        let dynamics_helps = rest
+            .iter()
+            .zip(&tried)
+            .filter_map(|(p, c)| {
+                let v = judge(c, &current, band, opts.bic_margin, nt, &unit);
+                v.passed.then_some((p, v.delta_bic + c.validate_ic))
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .is_some_and(|(p, _)| p.effects().contains(&Effect::Dynamics));
         if dynamics_helps {
             tried.par_extend(
                 placed
@@ -887,6 +899,7 @@ pub fn diagnose_with_tests(
                 dropped: false,
                 params: named(&c.fitted),
                 evidence: v.evidence.clone(),
+                evaluations: c.fitted.evaluations,
             });
             candidates.len() - 1
         };
@@ -895,6 +908,7 @@ pub fn diagnose_with_tests(
         // fitted to (training BIC alone favours flexible forms that do not predict; the
         // validation record alone cannot tell forms that predict alike).
         let mut best: Option<(usize, usize, f64)> = None;
+        let mut best_per_record: Option<(usize, usize, f64)> = None;
         let mut singles = Vec::new();
         for (i, (p, c)) in pool.iter().zip(&tried).enumerate() {
             let v = judge(c, &current, band, opts.bic_margin, nt, &unit);
@@ -903,7 +917,25 @@ pub fn diagnose_with_tests(
             if v.passed && best.is_none_or(|b| evidence < b.2) {
                 best = Some((i, at, evidence));
             }
+            let per_record = p.parts.iter().all(|x| x.0.per_record());
+            if v.passed && per_record && best_per_record.is_none_or(|b| evidence < b.2) {
+                best_per_record = Some((i, at, evidence));
+            }
             singles.push((i, v.delta_bic));
+        }
+        // Transfer: creep's initial-state decays are a drift of each record; when a drift
+        // of the record's own explains enough to pass too, the drift is taken first and
+        // creep must then pass on top of it by what the input drives (carried to the
+        // validation record with the same parameters); the backward step drops the drift
+        // if creep turns out to explain it.
+        if let (Some(b), Some(r)) = (best, best_per_record)
+            && pool[b.0].effects().contains(&Effect::Creep)
+        {
+            candidates[b.1].evidence.push_str(&format!(
+                "; transfer: a drift of each record ({}) passes too: taken first, so creep must add what the input drives",
+                pool[r.0].form()
+            ));
+            best = Some(r);
         }
         let mut chosen: Option<(Proposal, Evaluated, usize)> = best.map(|(i, at, _)| {
             let c = tried.get(i).expect("index of a candidate");

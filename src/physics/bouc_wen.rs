@@ -303,8 +303,15 @@ impl BoucWenKernel {
         } else {
             cn
         };
-        // Moving towards 0 from the other side: does it get there within v?
-        if g0 * a < 0.0 {
+        let slope = a - c0 * g0;
+        if slope == 0.0 {
+            return h; // at an equilibrium (avoids 0·∞ for growing exponentials)
+        }
+        let g1 = g0 + slope * v * expm1_ratio(c0 * v);
+        // Moving towards 0 from the other side and past it within v (the path is monotone,
+        // so the end's sign tells; the crossing point, a logarithm, only then): the rest of
+        // the step runs with the other side's coefficient.
+        if g0 * a < 0.0 && g1 * a > 0.0 {
             let x = -c0 * g0 / a;
             if x > -1.0 {
                 let v0 = (-g0 / a) * ln1p_ratio(x);
@@ -315,11 +322,7 @@ impl BoucWenKernel {
                 }
             }
         }
-        let slope = a - c0 * g0;
-        if slope == 0.0 {
-            return h; // at an equilibrium (avoids 0·∞ for growing exponentials)
-        }
-        s * (g0 + slope * v * expm1_ratio(c0 * v))
+        s * g1
     }
 
     /// `dg/dv` in the one-directional form.

@@ -647,7 +647,7 @@ impl Structure {
                 // Clip level over the training peak; the top (1) is no clipping at all.
                 (Effect::Saturation, _) => specs.push(spec("sat_level", 0.5, 1.0, 1.0, x)),
                 (Effect::Asymmetry, Form::Direction) => {
-                    specs.push(spec("asym_dir", -0.5, 0.5, 0.0, x))
+                    specs.push(spec("asym_dir", -0.9, 0.9, 0.0, x))
                 }
                 (Effect::Asymmetry, _) => specs.push(spec("asym_q", -0.3, 0.3, 0.0, x)),
                 (Effect::RateDependence, _) => {
@@ -656,14 +656,14 @@ impl Structure {
                     specs.push(spec("rate_log10_tau_s", lo, hi, 0.5 * (lo + hi), x));
                 }
                 (Effect::Creep, Form::Logarithmic) => {
-                    specs.push(spec("creep_log_gain", 0.0, 0.1, 0.0, x))
+                    specs.push(spec("creep_log_gain", 0.0, 0.3, 0.0, x))
                 }
                 (Effect::Creep, _) => {
                     let mid = (0.25 * t).max(20.0 * dt).log10();
                     let (lo, hi) = ((10.0 * dt).log10(), (10.0 * t).max(40.0 * dt).log10());
-                    specs.push(spec("creep_g", 0.0, 0.2, 0.0, x));
+                    specs.push(spec("creep_g", 0.0, 0.5, 0.0, x));
                     specs.push(spec("creep_log10_tau_s", lo, mid, 0.5 * (lo + mid), x));
-                    specs.push(spec("creep_g2", 0.0, 0.2, 0.0, x));
+                    specs.push(spec("creep_g2", 0.0, 0.5, 0.0, x));
                     specs.push(spec("creep_log10_tau2_s", mid, hi, 0.5 * (mid + hi), x));
                 }
                 (Effect::Dynamics, _) if placement == Placement::Feedback => {}
