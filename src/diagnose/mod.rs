@@ -212,6 +212,8 @@ pub struct Diagnosis {
     pub resolution: f64,
     /// The battery still finds structure in the final residual (whatever its size).
     pub residual_structured: bool,
+    /// Why the forward search ended.
+    pub search_stop: String,
     /// Bootstrap scores of the battery under the fitted baseline, sorted.
     pub bootstrap_scores: Vec<f64>,
     /// How the input moves between samples (`--hold`).
@@ -597,17 +599,33 @@ struct Verdict {
     evidence: String,
 }
 
-fn judge(
-    c: &Evaluated,
-    parent: &Evaluated,
+/// What a gate needs besides the two models: the parent's validation band, the BIC
+/// margin, the training length, the noise floor and the unit.
+struct Gate<'a> {
     band: [f64; 2],
     margin: f64,
     nt: usize,
-    unit: &str,
-) -> Verdict {
+    noise: f64,
+    unit: &'a str,
+}
+
+/// Share of the noise variance a candidate must remove from the validation mean square:
+/// with tens of thousands of samples the bootstrap band is narrow enough to pass effects
+/// far below anything the data resolve (an effect of RMS 0.2 sigma and less).
+const MIN_EXPLAINED: f64 = 0.05;
+
+fn judge(c: &Evaluated, parent: &Evaluated, g: &Gate) -> Verdict {
+    let Gate {
+        band,
+        margin,
+        nt,
+        noise,
+        unit,
+    } = *g;
     let delta = bic(&c.fitted, nt) - bic(&parent.fitted, nt);
     let bic_ok = delta < -margin;
-    let band_ok = c.validate_rmse < band[0];
+    let explained = parent.validate_rmse.powi(2) - c.validate_rmse.powi(2);
+    let band_ok = c.validate_rmse < band[0] && explained >= MIN_EXPLAINED * noise * noise;
     let white_ok = c.score < parent.score;
     let mark = |b: bool| if b { "yes" } else { "no" };
     let fmt = |x: f64| crate::report::table::sig(x, 3);
@@ -615,13 +633,15 @@ fn judge(
         delta_bic: delta,
         passed: bic_ok && band_ok && white_ok,
         evidence: format!(
-            "ΔBIC {} (needs < -{}: {}); validation RMSE {} vs parent band [{}, {}] {unit} ({}); residual score {} -> {} ({}); validation evidence {} (parent {})",
+            "ΔBIC {} (needs < -{}: {}); validation RMSE {} vs parent band [{}, {}] {unit}, explaining {} % of the noise variance (needs {}) ({}); residual score {} -> {} ({}); validation evidence {} (parent {})",
             fmt(delta),
             margin,
             mark(bic_ok),
             fmt(c.validate_rmse),
             fmt(band[0]),
             fmt(band[1]),
+            fmt(100.0 * explained / (noise * noise).max(1e-300)),
+            100.0 * MIN_EXPLAINED,
             mark(band_ok),
             fmt(parent.score),
             fmt(c.score),
@@ -841,11 +861,26 @@ pub fn diagnose_with_tests(
     let nt = d.ut.len();
     let threshold = boot.last().copied().unwrap_or(1.0).max(1.0);
     let mut round = 0;
+    let mut search_stop = format!("{} rounds, the most allowed", opts.max_rounds);
     while round < opts.max_rounds {
+        // Nothing the battery can tell from noise is left (at least one of the baseline's
+        // bootstrap refits scores as high): no name can be earned, the search ends.
+        if current_summary.p_value > 0.05 {
+            let at = match round {
+                0 => "at the baseline".to_string(),
+                r => format!("after round {r}"),
+            };
+            search_stop = format!(
+                "{at}: the residual battery finds no structure (bootstrap p {})",
+                crate::report::table::sig(current_summary.p_value, 2)
+            );
+            break;
+        }
         round += 1;
         let parent = current.fitted.structure.clone();
         let mut pool = candidate_pool(&parent, opts);
         if pool.is_empty() {
+            search_stop = format!("after round {}: no effect left to try", round - 1);
             break;
         }
         // A new placement (the hysteresis inside the mechanical feedback) is searched
@@ -860,11 +895,18 @@ pub fn diagnose_with_tests(
             .map(|p| fit_proposal(&current.fitted, p, &[], &d, opts, round))
             .collect();
         let band = current_summary.validate_band;
+        let gate = Gate {
+            band,
+            margin: opts.bic_margin,
+            nt,
+            noise,
+            unit: &unit,
+        };
         let dynamics_helps = rest
             .iter()
             .zip(&tried)
             .filter_map(|(p, c)| {
-                let v = judge(c, &current, band, opts.bic_margin, nt, &unit);
+                let v = judge(c, &current, &gate);
                 v.passed.then_some((p, v.delta_bic + c.validate_ic))
             })
             .min_by(|a, b| a.1.total_cmp(&b.1))
@@ -909,9 +951,9 @@ pub fn diagnose_with_tests(
         // validation record alone cannot tell forms that predict alike).
         let mut best: Option<(usize, usize, f64)> = None;
         let mut best_per_record: Option<(usize, usize, f64)> = None;
-        let mut singles = Vec::new();
+        let mut singles: Vec<(usize, f64)> = Vec::new();
         for (i, (p, c)) in pool.iter().zip(&tried).enumerate() {
-            let v = judge(c, &current, band, opts.bic_margin, nt, &unit);
+            let v = judge(c, &current, &gate);
             let at = record(p, c, &v, &mut candidates);
             let evidence = v.delta_bic + c.validate_ic;
             if v.passed && best.is_none_or(|b| evidence < b.2) {
@@ -924,12 +966,14 @@ pub fn diagnose_with_tests(
             singles.push((i, v.delta_bic));
         }
         // Transfer: creep's initial-state decays are a drift of each record; when a drift
-        // of the record's own explains enough to pass too, the drift is taken first and
-        // creep must then pass on top of it by what the input drives (carried to the
-        // validation record with the same parameters); the backward step drops the drift
-        // if creep turns out to explain it.
+        // of the record's own explains the training record about as well (ΔBIC within the
+        // margin of creep's), the drift is taken first and creep must then pass on top of
+        // it by what the input drives (carried to the validation record with the same
+        // parameters); the backward step drops the drift if creep turns out to explain it.
+        let train_delta = |i: usize| singles.iter().find(|x| x.0 == i).map_or(0.0, |x| x.1);
         if let (Some(b), Some(r)) = (best, best_per_record)
             && pool[b.0].effects().contains(&Effect::Creep)
+            && train_delta(r.0) <= train_delta(b.0) + opts.bic_margin
         {
             candidates[b.1].evidence.push_str(&format!(
                 "; transfer: a drift of each record ({}) passes too: taken first, so creep must add what the input drives",
@@ -988,7 +1032,7 @@ pub fn diagnose_with_tests(
                 .collect();
             let mut best: Option<(usize, usize, f64)> = None;
             for (i, (p, c)) in proposals.iter().zip(&fitted).enumerate() {
-                let v = judge(c, &current, band, 2.0 * opts.bic_margin, nt, &unit);
+                let v = judge(c, &current, &Gate { margin: 2.0 * opts.bic_margin, ..gate });
                 let at = record(p, c, &v, &mut candidates);
                 let evidence = v.delta_bic + c.validate_ic;
                 if v.passed && best.is_none_or(|b| evidence < b.2) {
@@ -997,7 +1041,10 @@ pub fn diagnose_with_tests(
             }
             chosen = best.map(|(i, at, _)| (proposals[i].clone(), fitted[i].clone(), at));
         }
-        let Some((p, c, at)) = chosen else { break };
+        let Some((p, c, at)) = chosen else {
+            search_stop = format!("after round {round}: no candidate passes the gate");
+            break;
+        };
         candidates[at].accepted = true;
         for e in p.effects() {
             if !parent.has(e) {
@@ -1136,6 +1183,7 @@ pub fn diagnose_with_tests(
         unexplained,
         resolution,
         residual_structured: structured,
+        search_stop,
         bootstrap_scores: boot,
         hold: opts.hold.name().into(),
         tests: free_runs,

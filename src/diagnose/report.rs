@@ -165,6 +165,7 @@ pub fn text(d: &Diagnosis) -> String {
             "no structure left that the residual tests can tell from noise".to_string()
         }
     );
+    let _ = writeln!(s, "search ended {}", d.search_stop);
     let _ = writeln!(s, "{} evaluations, {:.1} s", d.evaluations, d.wall_s);
     s
 }

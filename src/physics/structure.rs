@@ -634,9 +634,11 @@ impl Structure {
                     specs.push(spec("lag2_log10_zeta", zl.0, zl.1, 0.7f64.log10(), x));
                 }
                 (Effect::InputLag, _) => {
-                    // Log scale; the lower end (τ = dt/100) is a wire.
+                    // Log scale; the lower end (τ = dt/100) is a wire; the upper a cut-off
+                    // of 0.25 Hz (a slow drive filter) or 20 samples, whichever is longer.
                     let lo = (0.01 * dt).log10();
-                    specs.push(spec("lag_log10_tau_s", lo, (20.0 * dt).log10(), lo, x))
+                    let hi = (20.0 * dt).max(0.64).log10();
+                    specs.push(spec("lag_log10_tau_s", lo, hi, lo, x))
                 }
                 (Effect::Saturation, Form::Smooth) => {
                     specs.push(spec("sat_smooth_k", 0.0, 2.0, 0.0, x))
@@ -659,12 +661,16 @@ impl Structure {
                     specs.push(spec("creep_log_gain", 0.0, 0.3, 0.0, x))
                 }
                 (Effect::Creep, _) => {
+                    // Overlapping ranges (the fast element up to half the record, the slow
+                    // from a twentieth): two elements may sit close together.
                     let mid = (0.25 * t).max(20.0 * dt).log10();
                     let (lo, hi) = ((10.0 * dt).log10(), (10.0 * t).max(40.0 * dt).log10());
+                    let fast_hi = (0.5 * t).max(20.0 * dt).log10();
+                    let slow_lo = (0.05 * t).max(10.0 * dt).log10();
                     specs.push(spec("creep_g", 0.0, 0.5, 0.0, x));
-                    specs.push(spec("creep_log10_tau_s", lo, mid, 0.5 * (lo + mid), x));
+                    specs.push(spec("creep_log10_tau_s", lo, fast_hi, 0.5 * (lo + mid), x));
                     specs.push(spec("creep_g2", 0.0, 0.5, 0.0, x));
-                    specs.push(spec("creep_log10_tau2_s", mid, hi, 0.5 * (mid + hi), x));
+                    specs.push(spec("creep_log10_tau2_s", slow_lo, hi, 0.5 * (mid + hi), x));
                 }
                 (Effect::Dynamics, _) if placement == Placement::Feedback => {}
                 (Effect::Dynamics, f) => {
