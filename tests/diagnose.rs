@@ -148,7 +148,7 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
     // Dynamics is tried after the hysteresis in each of its forms in the first round; the
     // feedback placement (searched afresh, the costliest candidate) only if a mode after
     // the hysteresis is the best (lowest ΔBIC + validation evidence) of the candidates that
-    // pass the gate (evidence lines with three "yes").
+    // pass the gate (evidence lines with three "yes") and leaves over 1.5x the noise.
     let round1: Vec<&serde_json::Value> = json["candidates"]
         .as_array()
         .unwrap()
@@ -176,7 +176,10 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
             };
             e(a).total_cmp(&e(b))
         });
-    let helps = best_passing.is_some_and(|c| c["name"] == "dynamics");
+    let noise = json["noise_floor"].as_f64().unwrap();
+    let helps = best_passing.is_some_and(|c| {
+        c["name"] == "dynamics" && c["validate_rmse"].as_f64().unwrap() > 1.5 * noise
+    });
     let fb = round1.iter().any(|c| c["placement"] == "feedback");
     assert_eq!(fb, helps, "{round1:?}");
     // Test records: free run from the input alone, both models, finite; on the validation
