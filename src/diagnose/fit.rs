@@ -303,7 +303,7 @@ pub fn fit(
         let n = u.len().min(y.len());
         let explored = if w > 0 && w < n { w } else { n };
         let gain = explored as f64 * (start_cost / rec.best).ln();
-        screened_out = budget.screen > 0.0 && !(gain >= budget.screen);
+        screened_out = budget.screen > 0.0 && (gain.is_nan() || gain < budget.screen);
     }
     if !best.is_empty() && !screened_out {
         let mut step = 0.05;

@@ -922,8 +922,7 @@ pub fn diagnose_with_tests(
             .min_by(|a, b| a.2.total_cmp(&b.2))
             .map(|(p, c, _)| (p, c))
             .is_some_and(|(p, c)| {
-                p.effects().contains(&Effect::Dynamics)
-                    && c.validate_rmse > FEEDBACK_WORTH * noise
+                p.effects().contains(&Effect::Dynamics) && c.validate_rmse > FEEDBACK_WORTH * noise
             });
         if dynamics_helps {
             tried.par_extend(
@@ -1050,7 +1049,14 @@ pub fn diagnose_with_tests(
                 .collect();
             let mut best: Option<(usize, usize, f64)> = None;
             for (i, (p, c)) in proposals.iter().zip(&fitted).enumerate() {
-                let v = judge(c, &current, &Gate { margin: 2.0 * opts.bic_margin, ..gate });
+                let v = judge(
+                    c,
+                    &current,
+                    &Gate {
+                        margin: 2.0 * opts.bic_margin,
+                        ..gate
+                    },
+                );
                 let at = record(p, c, &v, &mut candidates);
                 let evidence = v.delta_bic + c.validate_ic;
                 if v.passed && best.is_none_or(|b| evidence < b.2) {

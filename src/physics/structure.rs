@@ -91,7 +91,9 @@ impl Effect {
             Effect::InputLag => "first-order low-pass on the drive (amplifier bandwidth)",
             Effect::Saturation => "drive clipped at large |u|",
             Effect::Asymmetry => "even-order term: unequal gains up and down",
-            Effect::RateDependence => "hysteretic slope (loop width) or gain growing with the input rate",
+            Effect::RateDependence => {
+                "hysteretic slope (loop width) or gain growing with the input rate"
+            }
             Effect::Creep => "slow visco-elastic (Kelvin-Voigt) lag after the hysteresis",
             Effect::Dynamics => "second-order structural mode after the hysteresis",
             Effect::OffsetDrift => "sensor offset drifting slowly, uncorrelated with the input",
@@ -2278,7 +2280,10 @@ mod tests {
             Placement::After,
         );
         let mut th = plain.embed(&theta, &st);
-        let i = st.specs().iter().position(|s| s.name == "drift_log10_tau_s");
+        let i = st
+            .specs()
+            .iter()
+            .position(|s| s.name == "drift_log10_tau_s");
         th[i.expect("settling has a time constant")] = tau.log10();
         let fit = st.fit_linear(&th, &u, &y);
         assert!(fit.cost < 1e-20, "{}", fit.cost);
@@ -2330,9 +2335,7 @@ mod tests {
             for k in 801..1600 {
                 let du = (u[k] - u[k - 1]) / 2000.0;
                 for _ in 0..2000 {
-                    g += du
-                        * ((1.0 + rho)
-                            - (beta * (du * g).signum() + gamma) * g.abs().powf(n));
+                    g += du * ((1.0 + rho) - (beta * (du * g).signum() + gamma) * g.abs().powf(n));
                 }
                 assert!((out[k] - g).abs() < 1e-4 * (1.0 + g.abs()), "n={n} k={k}");
             }
