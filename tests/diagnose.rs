@@ -135,8 +135,18 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
         "left_out",
         "final",
         "unexplained",
+        "search_stop",
     ] {
         assert!(json.get(key).is_some(), "missing {key}");
+    }
+    // The search ends for a stated reason, and every candidate says what its fit cost.
+    let stop = json["search_stop"].as_str().unwrap();
+    assert!(
+        stop.contains("no candidate passes") || stop.contains("no structure"),
+        "{stop}"
+    );
+    for c in json["candidates"].as_array().unwrap() {
+        assert!(c["evaluations"].as_u64().unwrap() > 0);
     }
     assert_eq!(json["model"], "bouc-wen-n1");
     assert_eq!(json["left_out"], serde_json::json!(["asymmetry"]));

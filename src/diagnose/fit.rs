@@ -417,3 +417,82 @@ pub fn initial_state_for(
     th[index] = rec.best_x[0];
     (th, rec.evaluations)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::physics::structure::{Context, Effect};
+
+    /// A plain Bouc-Wen record (no asymmetry), and the nested asymmetry candidate started at
+    /// the plain optimum: its own parameter cannot gain, so the screen skips the polish; on
+    /// a record with asymmetry it gains and the polish runs.
+    #[test]
+    fn the_screen_skips_the_polish_only_when_the_search_gains_nothing() {
+        let dt = 1e-3;
+        let u: Vec<f64> = (0..3000)
+            .map(|k| 2.0 + 1.8 * (2.0 * std::f64::consts::PI * 2.0 * k as f64 * dt).sin())
+            .collect();
+        let ctx = Context::from_training(&u, dt);
+        let plain = Structure::new(&[], Some(1.0), ctx);
+        let theta: Vec<f64> = plain
+            .specs()
+            .iter()
+            .map(|s| match s.name {
+                "log10_s" => -0.4,
+                "w" => 0.6,
+                _ => s.neutral,
+            })
+            .collect();
+        let (clean, _) = plain.simulate(&theta, &[0.15, 0.01, 0.05], &u);
+        let asym = plain.extended(Effect::Asymmetry);
+        let mut th_a = plain.embed(&theta, &asym);
+        let q = asym
+            .specs()
+            .iter()
+            .position(|s| s.name == "asym_q")
+            .unwrap();
+        th_a[q] = 0.1;
+        let (skewed, _) = asym.simulate(&th_a, &[0.15, 0.01, 0.05], &u);
+        let budget = Budget {
+            global: 120,
+            swarm: 10,
+            polish: 300,
+            rounds: 1,
+            global_window: 0,
+            screen: 2.0,
+        };
+        let free = [q];
+        let start = plain.embed(&theta, &asym);
+        let run = |y: Vec<f64>, b: Budget| {
+            fit(
+                &asym,
+                &Arc::new(u.clone()),
+                &Arc::new(y),
+                Some(&start),
+                Some(&free),
+                b,
+                7,
+            )
+        };
+        let skipped = run(clean.clone(), budget);
+        assert_eq!(skipped.evaluations, 120, "only the global stage");
+        let unscreened = run(
+            clean,
+            Budget {
+                screen: 0.0,
+                ..budget
+            },
+        );
+        assert!(unscreened.evaluations > 120);
+        let polished = run(skewed, budget);
+        assert!(
+            polished.evaluations > 120,
+            "a gaining candidate is polished"
+        );
+        assert!(
+            (polished.theta[q] - 0.1).abs() < 0.02,
+            "{}",
+            polished.theta[q]
+        );
+    }
+}
