@@ -60,6 +60,10 @@ class TestWilson(unittest.TestCase):
         self.assertEqual(s["nulls_false_alarm"]["k"], 0)
         self.assertEqual(s["spurious"], {"delay": 1})
         self.assertEqual(s["wall_s"]["worst_case"], "b")
+        self.assertEqual(s["wall_s"]["over_60s"], [])
+        slow = [dict(r, wall_s=w) for r, w in zip(res, [61.0, 3, 75.5, 2])]
+        self.assertEqual(score.score(slow)["wall_s"]["over_60s"], [("c", 75.5), ("a", 61.0)])
+        self.assertIn("over 60 s: 2 (c 75.5 s, a 61.0 s)", score.markdown(score.score(slow)))
         self.assertIn("| creep |", score.markdown(s))
         t = truth(["dynamics"])
         t.update(target_reached=False, effect_settings={"dynamics": {"in_nominal_range": False, "at_bound": True}})
