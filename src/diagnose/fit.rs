@@ -214,7 +214,10 @@ pub fn fit(
 ) -> Fitted {
     let obj = Arc::new(StructureObjective::new(st.clone(), u.clone(), y.clone()));
     let w = budget.global_window;
-    let explore = if w > 0 && w < u.len().min(y.len()) {
+    let n = u.len().min(y.len());
+    // Samples the global stage fits.
+    let explored = if w > 0 && w < n { w } else { n };
+    let explore = if explored < n {
         Arc::new(StructureObjective::new(
             st.clone(),
             Arc::new(u[..w].to_vec()),
@@ -300,8 +303,6 @@ pub fn fit(
         }
         // The first evaluation is the start (seeded first).
         let start_cost = rec.improvements.first().map_or(rec.best, |x| x.1);
-        let n = u.len().min(y.len());
-        let explored = if w > 0 && w < n { w } else { n };
         let gain = explored as f64 * (start_cost / rec.best).ln();
         screened_out = budget.screen > 0.0 && (gain.is_nan() || gain < budget.screen);
     }
@@ -323,7 +324,7 @@ pub fn fit(
                 // than 0.01, far below any decision margin.
                 stall: Some(Stall {
                     window: 60 + 15 * best.len() as u64,
-                    rel: 0.01 / u.len().min(y.len()).max(1) as f64,
+                    rel: 0.01 / n.max(1) as f64,
                 }),
                 seed: TrialSeed::derive(seed, &label, "nelder-mead", round as u64),
             });
@@ -421,6 +422,7 @@ pub fn initial_state_for(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::physics::structure::tests::theta_with;
     use crate::physics::structure::{Context, Effect};
 
     /// A plain Bouc-Wen record (no asymmetry), and the nested asymmetry candidate started at
@@ -434,15 +436,7 @@ mod tests {
             .collect();
         let ctx = Context::from_training(&u, dt);
         let plain = Structure::new(&[], Some(1.0), ctx);
-        let theta: Vec<f64> = plain
-            .specs()
-            .iter()
-            .map(|s| match s.name {
-                "log10_s" => -0.4,
-                "w" => 0.6,
-                _ => s.neutral,
-            })
-            .collect();
+        let theta = theta_with(&plain, &[("log10_s", -0.4), ("w", 0.6)]);
         let (clean, _) = plain.simulate(&theta, &[0.15, 0.01, 0.05], &u);
         let asym = plain.extended(Effect::Asymmetry);
         let mut th_a = plain.embed(&theta, &asym);

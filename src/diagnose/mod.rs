@@ -912,24 +912,25 @@ pub fn diagnose_with_tests(
             noise,
             unit: &unit,
         };
+        let mut verdicts: Vec<Verdict> = tried.iter().map(|c| judge(c, &current, &gate)).collect();
         let dynamics_helps = rest
             .iter()
             .zip(&tried)
-            .filter_map(|(p, c)| {
-                let v = judge(c, &current, &gate);
-                v.passed.then_some((p, c, v.delta_bic + c.validate_ic))
+            .zip(&verdicts)
+            .filter(|(_, v)| v.passed)
+            .min_by(|((_, a), va), ((_, b), vb)| {
+                (va.delta_bic + a.validate_ic).total_cmp(&(vb.delta_bic + b.validate_ic))
             })
-            .min_by(|a, b| a.2.total_cmp(&b.2))
-            .map(|(p, c, _)| (p, c))
-            .is_some_and(|(p, c)| {
+            .is_some_and(|((p, c), _)| {
                 p.effects().contains(&Effect::Dynamics) && c.validate_rmse > FEEDBACK_WORTH * noise
             });
         if dynamics_helps {
-            tried.par_extend(
-                placed
-                    .par_iter()
-                    .map(|p| fit_proposal(&current.fitted, p, &[], &d, opts, round)),
-            );
+            let moved: Vec<Evaluated> = placed
+                .par_iter()
+                .map(|p| fit_proposal(&current.fitted, p, &[], &d, opts, round))
+                .collect();
+            verdicts.extend(moved.iter().map(|c| judge(c, &current, &gate)));
+            tried.extend(moved);
             rest.extend(placed);
         }
         let pool = rest;
@@ -965,9 +966,8 @@ pub fn diagnose_with_tests(
         let mut best: Option<(usize, usize, f64)> = None;
         let mut best_per_record: Option<(usize, usize, f64)> = None;
         let mut singles: Vec<(usize, f64)> = Vec::new();
-        for (i, (p, c)) in pool.iter().zip(&tried).enumerate() {
-            let v = judge(c, &current, &gate);
-            let at = record(p, c, &v, &mut candidates);
+        for (i, ((p, c), v)) in pool.iter().zip(&tried).zip(&verdicts).enumerate() {
+            let at = record(p, c, v, &mut candidates);
             let evidence = v.delta_bic + c.validate_ic;
             if v.passed && best.is_none_or(|b| evidence < b.2) {
                 best = Some((i, at, evidence));

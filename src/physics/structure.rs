@@ -1153,14 +1153,13 @@ impl Structure {
                 // the state keeps the memory of earlier rates (the width is not rescaled at
                 // once when the rate falls).
                 let k = (1.0 + sh.rho * rr).max(1e-6);
-                let kn = k.powf(1.0 / sh.n);
+                let kn = if sh.n == 1.0 { k } else { k.powf(1.0 / sh.n) };
                 g = kn * advance(g / kn, dv * k / kn);
             } else {
                 g = advance(g, dv);
             }
-            let hv = g;
             v_prev = v;
-            let (mut a, mut b) = (vv, -hv);
+            let (mut a, mut b) = (vv, -g);
             let (a0, b0) = if hold_after && !creep.is_empty() {
                 (held(a, &mut prev_a0), held(b, &mut prev_b0))
             } else {
@@ -1783,7 +1782,7 @@ pub fn least_squares(cols: &[Vec<f64>], y: &[f64]) -> Vec<f64> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::physics::bouc_wen;
     use crate::physics::twin::{self, TwinConfig};
@@ -1944,7 +1943,8 @@ mod tests {
     }
 
     /// The theta of structure `st` at neutral with the named values set.
-    fn theta_with(st: &Structure, values: &[(&str, f64)]) -> Vec<f64> {
+    /// The shape of `st` with the named values set, every other parameter neutral.
+    pub(crate) fn theta_with(st: &Structure, values: &[(&str, f64)]) -> Vec<f64> {
         st.specs()
             .iter()
             .map(|s| {
@@ -2225,14 +2225,21 @@ mod tests {
         assert!((d1 / d2 - 1.0).abs() < 0.35, "{d1} {d2}");
     }
 
-    #[test]
-    fn spline_drift_recovers_a_piecewise_linear_drift_and_belongs_to_the_record() {
+    /// A 20 s, 0.5 Hz sine at 100 Hz and the plain model's output on it: the record the
+    /// drift forms are added to.
+    fn slow_plain_record() -> (Vec<f64>, Context, Structure, Vec<f64>, Vec<f64>) {
         let dt = 1e-2;
         let u = sine(2000, 0.5, dt);
         let ctx = Context::from_training(&u, dt);
         let plain = Structure::new(&[], Some(1.0), ctx);
         let theta = theta_with(&plain, &[("log10_s", -0.4), ("w", 0.6)]);
         let (y0, _) = plain.simulate(&theta, &[0.15, 0.0, 0.05], &u);
+        (u, ctx, plain, theta, y0)
+    }
+
+    #[test]
+    fn spline_drift_recovers_a_piecewise_linear_drift_and_belongs_to_the_record() {
+        let (u, ctx, plain, theta, y0) = slow_plain_record();
         // A wander through the spline's own knots (8 segments over samples 0..=1999).
         let knots = [0.0, 0.3, -0.2, 0.1, 0.4, 0.0, -0.3, 0.2, 0.1];
         let drift = |k: usize| {
@@ -2261,13 +2268,8 @@ mod tests {
 
     #[test]
     fn settling_drift_recovers_an_exponential_and_belongs_to_the_record() {
-        let dt = 1e-2;
-        let u = sine(2000, 0.5, dt);
-        let ctx = Context::from_training(&u, dt);
-        let plain = Structure::new(&[], Some(1.0), ctx);
-        let theta = theta_with(&plain, &[("log10_s", -0.4), ("w", 0.6)]);
-        let (y0, _) = plain.simulate(&theta, &[0.15, 0.0, 0.05], &u);
-        let tau = 4.0;
+        let (u, ctx, plain, theta, y0) = slow_plain_record();
+        let (dt, tau) = (ctx.dt, 4.0);
         let y: Vec<f64> = y0
             .iter()
             .enumerate()
