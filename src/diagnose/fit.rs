@@ -332,6 +332,12 @@ pub fn fit(
             // The simplex starts at `best`, so its best is never worse.
             best = rec.best_x;
             step *= 0.3;
+            // A round that gained nothing (below 0.05 BIC units, `N ln(start / best)`)
+            // converged where it started: a smaller simplex from there converges there too.
+            let start_cost = rec.improvements.first().map_or(rec.best, |x| x.1);
+            if n as f64 * (start_cost / rec.best).ln() < 0.05 {
+                break;
+            }
         }
     }
     let linear = st.fit_linear(&best, u, y);

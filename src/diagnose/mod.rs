@@ -469,6 +469,13 @@ struct Proposal {
 }
 
 impl Proposal {
+    /// Only times the input (a delay, an input lag).
+    fn is_timing(&self) -> bool {
+        self.parts
+            .iter()
+            .all(|x| matches!(x.0, Effect::Delay | Effect::InputLag))
+    }
+
     /// `a+b` of one name per part.
     fn joined(&self, name: fn(&(Effect, Form)) -> &'static str) -> String {
         self.parts.iter().map(name).collect::<Vec<_>>().join("+")
@@ -600,10 +607,12 @@ struct Verdict {
 }
 
 /// What a gate needs besides the two models: the parent's validation band, the BIC
-/// margin, the training length, the noise floor and the unit.
+/// margin, the share of the noise variance to explain, the training length, the noise
+/// floor and the unit.
 struct Gate<'a> {
     band: [f64; 2],
     margin: f64,
+    min_explained: f64,
     nt: usize,
     noise: f64,
     unit: &'a str,
@@ -618,10 +627,38 @@ const MIN_EXPLAINED: f64 = 0.15;
 /// more than this many times the noise on validation.
 const FEEDBACK_WORTH: f64 = 1.5;
 
+/// A mode is a resonance when its gain peaks at least 2x (6 dB) over its static gain
+/// (ζ below about 0.26) at a frequency the samples resolve (below 0.4 of the sampling
+/// rate). A fitted mode with no such peak is a low-pass, a phase lag the data cannot place
+/// after rather than before the hysteresis: input timing explains it with no resonance.
+const RESONANT_ZETA: f64 = 0.26;
+const RESOLVED_FRACTION: f64 = 0.4;
+
+/// Whether a fitted mode after the hysteresis is a resonance ([`RESONANT_ZETA`]); `None`
+/// for a model with no such mode.
+fn resonant(f: &Fitted, dt: f64) -> Option<bool> {
+    let p = named(f);
+    let modes: Vec<(f64, f64)> = ["mode", "mode2"]
+        .iter()
+        .filter_map(|m| {
+            Some((
+                *p.get(&format!("{m}_freq_hz"))?,
+                *p.get(&format!("{m}_zeta"))?,
+            ))
+        })
+        .collect();
+    (!modes.is_empty()).then(|| {
+        modes
+            .iter()
+            .any(|&(hz, zeta)| zeta < RESONANT_ZETA && hz < RESOLVED_FRACTION / dt)
+    })
+}
+
 fn judge(c: &Evaluated, parent: &Evaluated, g: &Gate) -> Verdict {
     let Gate {
         band,
         margin,
+        min_explained,
         nt,
         noise,
         unit,
@@ -629,7 +666,7 @@ fn judge(c: &Evaluated, parent: &Evaluated, g: &Gate) -> Verdict {
     let delta = bic(&c.fitted, nt) - bic(&parent.fitted, nt);
     let bic_ok = delta < -margin;
     let explained = parent.validate_rmse.powi(2) - c.validate_rmse.powi(2);
-    let band_ok = c.validate_rmse < band[0] && explained >= MIN_EXPLAINED * noise * noise;
+    let band_ok = c.validate_rmse < band[0] && explained >= min_explained * noise * noise;
     // The battery's score must fall, unless the candidate removes more than the noise
     // variance itself from the validation error: one of two concealed effects, fitted
     // alone, can reshape the residual (a mode without the rate-dependence beside it) so a
@@ -649,7 +686,7 @@ fn judge(c: &Evaluated, parent: &Evaluated, g: &Gate) -> Verdict {
             fmt(band[0]),
             fmt(band[1]),
             fmt(100.0 * explained / (noise * noise).max(1e-300)),
-            100.0 * MIN_EXPLAINED,
+            100.0 * min_explained,
             mark(band_ok),
             fmt(parent.score),
             fmt(c.score),
@@ -908,11 +945,16 @@ pub fn diagnose_with_tests(
         let gate = Gate {
             band,
             margin: opts.bic_margin,
+            min_explained: MIN_EXPLAINED,
             nt,
             noise,
             unit: &unit,
         };
         let mut verdicts: Vec<Verdict> = tried.iter().map(|c| judge(c, &current, &gate)).collect();
+        let timing_passes = rest
+            .iter()
+            .zip(&verdicts)
+            .any(|(p, v)| v.passed && p.is_timing());
         let dynamics_helps = rest
             .iter()
             .zip(&tried)
@@ -922,7 +964,9 @@ pub fn diagnose_with_tests(
                 (va.delta_bic + a.validate_ic).total_cmp(&(vb.delta_bic + b.validate_ic))
             })
             .is_some_and(|((p, c), _)| {
-                p.effects().contains(&Effect::Dynamics) && c.validate_rmse > FEEDBACK_WORTH * noise
+                p.effects().contains(&Effect::Dynamics)
+                    && c.validate_rmse > FEEDBACK_WORTH * noise
+                    && !(timing_passes && resonant(&c.fitted, dt) == Some(false))
             });
         if dynamics_helps {
             let moved: Vec<Evaluated> = placed
@@ -965,12 +1009,16 @@ pub fn diagnose_with_tests(
         // validation record alone cannot tell forms that predict alike).
         let mut best: Option<(usize, usize, f64)> = None;
         let mut best_per_record: Option<(usize, usize, f64)> = None;
+        let mut best_timing: Option<(usize, usize, f64)> = None;
         let mut singles: Vec<(usize, f64)> = Vec::new();
         for (i, ((p, c), v)) in pool.iter().zip(&tried).zip(&verdicts).enumerate() {
             let at = record(p, c, v, &mut candidates);
             let evidence = v.delta_bic + c.validate_ic;
             if v.passed && best.is_none_or(|b| evidence < b.2) {
                 best = Some((i, at, evidence));
+            }
+            if v.passed && p.is_timing() && best_timing.is_none_or(|b| evidence < b.2) {
+                best_timing = Some((i, at, evidence));
             }
             let per_record = p.parts.iter().all(|x| x.0.per_record());
             if v.passed && per_record && best_per_record.is_none_or(|b| evidence < b.2) {
@@ -993,6 +1041,18 @@ pub fn diagnose_with_tests(
                 pool[r.0].form()
             ));
             best = Some(r);
+        }
+        // A mode with no resonance is a low-pass: when input timing passes too, it is named.
+        if let (Some(b), Some(t)) = (best, best_timing)
+            && !parent.has(Effect::Dynamics)
+            && resonant(&tried[b.0].fitted, dt) == Some(false)
+        {
+            candidates[b.1].evidence.push_str(&format!(
+                "; no resonance (no mode peaks 2x below {} of the sampling rate): a low-pass; input timing ({}) passes too and is named instead",
+                RESOLVED_FRACTION,
+                pool[t.0].name()
+            ));
+            best = Some(t);
         }
         let mut chosen: Option<(Proposal, Evaluated, usize)> = best.map(|(i, at, _)| {
             let c = tried.get(i).expect("index of a candidate");
@@ -1052,8 +1112,10 @@ pub fn diagnose_with_tests(
                 let v = judge(
                     c,
                     &current,
+                    // Each effect of a pair earns what a single must.
                     &Gate {
                         margin: 2.0 * opts.bic_margin,
+                        min_explained: 2.0 * MIN_EXPLAINED,
                         ..gate
                     },
                 );
@@ -1217,4 +1279,77 @@ pub fn diagnose_with_tests(
         series,
     };
     Ok(diag)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::physics::structure::tests::theta_with;
+
+    /// A fitted structure with the given mode parameters (the linear part is not looked at).
+    fn fitted(form: Form, values: &[(&str, f64)], dt: f64) -> Fitted {
+        let u: Vec<f64> = (0..400).map(|k| (k as f64 * 0.05).sin()).collect();
+        let st = Structure::with_forms(
+            &[(Effect::Dynamics, form)],
+            Some(1.0),
+            Context::from_training(&u, dt),
+            Placement::After,
+        );
+        let theta = theta_with(&st, values);
+        let linear = st.fit_linear(&theta, &u, &u);
+        Fitted {
+            structure: st,
+            theta,
+            linear,
+            evaluations: 0,
+        }
+    }
+
+    /// The rule that recasts a mode as input timing: a resonance needs a 2x peak (ζ below
+    /// 0.26) below 0.4 of the sampling rate; two modes need one such.
+    #[test]
+    fn a_mode_is_a_resonance_only_with_a_resolved_peak() {
+        let dt = 1e-3; // 1 kHz: modes resolved below 400 Hz
+        let one = |hz: f64, zeta: f64| {
+            let f = fitted(
+                Form::OneMode,
+                &[
+                    ("mode_log10_hz", hz.log10()),
+                    ("mode_log10_zeta", zeta.log10()),
+                ],
+                dt,
+            );
+            resonant(&f, dt)
+        };
+        assert_eq!(one(150.0, 0.05), Some(true));
+        assert_eq!(one(150.0, 0.25), Some(true));
+        assert_eq!(one(150.0, 0.3), Some(false), "no 2x peak");
+        assert_eq!(one(150.0, 1.2), Some(false), "overdamped: a low-pass");
+        assert_eq!(one(450.0, 0.02), Some(false), "too near Nyquist to resolve");
+        let two = |z1: f64, z2: f64| {
+            let f = fitted(
+                Form::TwoModes,
+                &[
+                    ("mode_log10_hz", 100f64.log10()),
+                    ("mode_log10_zeta", z1.log10()),
+                    ("mode2_log10_hz", 250f64.log10()),
+                    ("mode2_log10_zeta", z2.log10()),
+                    ("mode2_share", 0.4),
+                ],
+                dt,
+            );
+            resonant(&f, dt)
+        };
+        assert_eq!(two(1.0, 0.05), Some(true), "one resonant mode suffices");
+        assert_eq!(two(1.0, 0.6), Some(false));
+        let plain = Structure::new(&[], Some(1.0), Context::from_training(&[0.0, 1.0], dt));
+        let theta = theta_with(&plain, &[]);
+        let f = Fitted {
+            linear: plain.fit_linear(&theta, &[0.0, 1.0], &[0.0, 1.0]),
+            theta,
+            structure: plain,
+            evaluations: 0,
+        };
+        assert_eq!(resonant(&f, dt), None);
+    }
 }

@@ -502,11 +502,23 @@ impl BoucWenKernel {
     }
 }
 
-/// `(1 - e^(-x)) / x`, 1 at 0.
+/// `(1 - e^(-x)) / x`, 1 at 0. One step of a finely sampled drive has `|x|` far below
+/// 0.02, where the series `Σ (-x)^k / (k+1)!` to `k = 7` is exact to below 1e-19 (the
+/// first term left out, `x⁸/9!`): a quarter of the cost of `exp_m1` and a division.
 #[inline]
 fn expm1_ratio(x: f64) -> f64 {
-    if x.abs() < 1e-8 {
-        1.0 - 0.5 * x
+    if x.abs() < 0.02 {
+        const C: [f64; 8] = [
+            1.0,
+            -1.0 / 2.0,
+            1.0 / 6.0,
+            -1.0 / 24.0,
+            1.0 / 120.0,
+            -1.0 / 720.0,
+            1.0 / 5040.0,
+            -1.0 / 40320.0,
+        ];
+        C.iter().rev().fold(0.0, |acc, &c| acc * x + c)
     } else {
         -(-x).exp_m1() / x
     }
@@ -645,6 +657,22 @@ mod tests {
         (0..len)
             .map(|k| amp * (2.0 * std::f64::consts::PI * k as f64 / per_period as f64).sin())
             .collect()
+    }
+
+    #[test]
+    fn the_series_of_expm1_ratio_matches_exp_m1() {
+        let mut x: f64 = 1e-12;
+        while x < 0.05 {
+            for v in [x, -x] {
+                let exact = -(-v).exp_m1() / v;
+                let got = expm1_ratio(v);
+                assert!(
+                    ((got - exact) / exact).abs() < 4e-16,
+                    "x = {v}: {got} vs {exact}"
+                );
+            }
+            x *= 1.37;
+        }
     }
 
     #[test]
