@@ -17,10 +17,12 @@
 //!    then Nelder-Mead over all). A candidate is accepted only if BIC on the training data
 //!    improves by more than [`Options::bic_margin`], its validation RMSE falls below the
 //!    parent's 95 % band (moving-block bootstrap of the parent's validation residual), and
-//!    the residual battery's score falls. The best such candidate (lowest ΔBIC) is added and
-//!    the round repeats from the new model until nothing more is accepted. Effects that
-//!    mimic each other (delay, input-lag, dynamics; creep, offset-drift) compete in the
-//!    same round, so the nested comparison, not the screen, decides.
+//!    the residual battery's score falls. The best such candidate (training ΔBIC plus its
+//!    criterion on validation) is added and the round repeats from the new model until
+//!    nothing more is accepted. Effects that mimic each other (delay, input-lag, dynamics;
+//!    creep, offset-drift) compete in the same round, so the nested comparison, not the
+//!    screen, decides; where the data cannot tell them apart, the simpler reading wins: a
+//!    mode with no resonant peak yields to input timing, creep to a record's own drift.
 
 pub mod cli;
 pub mod fit;

@@ -1086,8 +1086,12 @@ impl Structure {
             l.settle(u0);
         }
         let v0 = drive(u0);
+        // The rate's memory starts at the rate the record starts with: a record cut from a
+        // running excitation starts in motion, and memory at rest would add a start-up
+        // transient of the rate time constant that a drift or creep then soaks up.
+        let rate0 = (u.get(1).map_or(v0, |&x| drive(x)) - v0).abs() / dt;
         if let Some(r) = &mut rate {
-            r.settle(0.0);
+            r.settle(rate0);
         }
         // The hysteretic state at the first sample; the linear blocks after it at rest there.
         let mut g = sh.g0.clamp(-1.0, 1.0) * sh.s * ctx.u_ref;
@@ -1133,9 +1137,9 @@ impl Structure {
             }
             let v = drive(x);
             let dv = v - v_prev;
-            let rr = rate
-                .as_mut()
-                .map_or(0.0, |r| r.step(dv.abs() / dt) / ctx.rate_ref);
+            let rr = rate.as_mut().map_or(0.0, |r| {
+                r.step(if k == 0 { rate0 } else { dv.abs() / dt }) / ctx.rate_ref
+            });
             let advance = |g: f64, dv: f64| {
                 if dv >= 0.0 {
                     up.advance(g, dv)
@@ -2296,6 +2300,37 @@ pub(crate) mod tests {
         // A wrong time constant leaves a remainder: the form is not a free offset.
         th[i.unwrap()] = (0.1 * tau).log10();
         assert!(st.fit_linear(&th, &u, &y).cost > 1e-6);
+    }
+
+    /// A record cut from a running ramp starts in motion: the rate's memory starts at that
+    /// rate, so a rate-dependent gain is the same from the first sample (no start-up
+    /// transient of the rate time constant for a drift or creep to soak up).
+    #[test]
+    fn the_rate_memory_starts_at_the_rate_the_record_starts_with() {
+        let dt = 1e-3;
+        let u: Vec<f64> = (0..600).map(|k| 0.5 + 2e-3 * k as f64).collect();
+        let ctx = Context::from_training(&u, dt);
+        let st = Structure::with_forms(
+            &[(Effect::RateDependence, Form::Gain)],
+            Some(1.0),
+            ctx,
+            Placement::After,
+        );
+        let th = theta_with(
+            &st,
+            &[("rate_rho", 0.8), ("rate_log10_tau_s", (0.05f64).log10())],
+        );
+        // Only the drive term (d_e = 1): v (1 + ρ r), r the rate over its reference.
+        let (out, _) = st.simulate(&th, &[1.0, 0.0, 0.0], &u);
+        let gain: Vec<f64> = out.iter().zip(&u).map(|(y, x)| y / x).collect();
+        let settled = gain[599];
+        assert!(settled > 1.1, "the rate acts: gain {settled}");
+        for (k, g) in gain.iter().enumerate() {
+            assert!(
+                (g - settled).abs() < 1e-9,
+                "sample {k}: gain {g} vs {settled}"
+            );
+        }
     }
 
     #[test]
