@@ -186,7 +186,6 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
             };
             e(a).total_cmp(&e(b))
         });
-    let noise = json["noise_floor"].as_f64().unwrap();
     let helps = best_passing.is_some_and(|c| {
         c["name"] == "dynamics" && c["validate_rmse"].as_f64().unwrap() > 1.5 * noise
     });

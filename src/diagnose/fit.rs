@@ -3,7 +3,7 @@
 //! counted by the [`crate::harness::Evaluator`]); the linear coefficients are solved by
 //! least squares inside each evaluation.
 
-use crate::harness::{Stall, TrialSeed, TrialSpec, run_trial};
+use crate::harness::{Stall, TrialRecord, TrialSeed, TrialSpec, run_trial};
 use crate::objective::{Bounds, Objective};
 use crate::optimizer::nelder_mead::NelderMead;
 use crate::optimizer::pso::PsoConfig;
@@ -301,9 +301,7 @@ pub fn fit(
         for (&i, &v) in free.iter().zip(&rec.best_x) {
             best[i] = v;
         }
-        // The first evaluation is the start (seeded first).
-        let start_cost = rec.improvements.first().map_or(rec.best, |x| x.1);
-        let gain = explored as f64 * (start_cost / rec.best).ln();
+        let gain = bic_gain(&rec, explored);
         screened_out = budget.screen > 0.0 && (gain.is_nan() || gain < budget.screen);
     }
     if !best.is_empty() && !screened_out {
@@ -329,13 +327,13 @@ pub fn fit(
                 seed: TrialSeed::derive(seed, &label, "nelder-mead", round as u64),
             });
             evaluations += rec.evaluations;
+            // A round that gained nothing (below 0.05 BIC units) converged where it
+            // started: a smaller simplex from there converges there too.
+            let converged = bic_gain(&rec, n) < 0.05;
             // The simplex starts at `best`, so its best is never worse.
             best = rec.best_x;
             step *= 0.3;
-            // A round that gained nothing (below 0.05 BIC units, `N ln(start / best)`)
-            // converged where it started: a smaller simplex from there converges there too.
-            let start_cost = rec.improvements.first().map_or(rec.best, |x| x.1);
-            if n as f64 * (start_cost / rec.best).ln() < 0.05 {
+            if converged {
                 break;
             }
         }
@@ -347,6 +345,13 @@ pub fn fit(
         linear,
         evaluations,
     }
+}
+
+/// What a run gained over its first evaluation (its start: seeded or the simplex's first
+/// vertex), in BIC units on `samples` samples: `N ln(start cost / best)`.
+fn bic_gain(rec: &TrialRecord, samples: usize) -> f64 {
+    let start_cost = rec.improvements.first().map_or(rec.best, |x| x.1);
+    samples as f64 * (start_cost / rec.best).ln()
 }
 
 /// Validation SSE/2 of a fitted model as a function of its initial hysteretic state only

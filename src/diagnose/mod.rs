@@ -1082,11 +1082,10 @@ pub fn diagnose_with_tests(
             }
             // Not a delay with an input lag: both only time the input, and together they
             // are a more flexible timing that the data can rarely tell apart.
-            let timing = |i: usize| matches!(pool[i].parts[0].0, Effect::Delay | Effect::InputLag);
             let pairs: Vec<(usize, usize)> = (0..top.len())
                 .flat_map(|a| (a + 1..top.len()).map(move |b| (a, b)))
                 .map(|(a, b)| (top[a], top[b]))
-                .filter(|&(a, b)| !(timing(a) && timing(b)))
+                .filter(|&(a, b)| !(pool[a].is_timing() && pool[b].is_timing()))
                 .collect();
             let proposals: Vec<Proposal> = pairs
                 .iter()

@@ -1946,7 +1946,6 @@ pub(crate) mod tests {
         }
     }
 
-    /// The theta of structure `st` at neutral with the named values set.
     /// The shape of `st` with the named values set, every other parameter neutral.
     pub(crate) fn theta_with(st: &Structure, values: &[(&str, f64)]) -> Vec<f64> {
         st.specs()
