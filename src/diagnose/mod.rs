@@ -22,7 +22,10 @@
 //!    nothing more is accepted. Effects that mimic each other (delay, input-lag, dynamics;
 //!    creep, offset-drift) compete in the same round, so the nested comparison, not the
 //!    screen, decides; where the data cannot tell them apart, the simpler reading wins: a
-//!    mode with no resonant peak yields to input timing, creep to a record's own drift.
+//!    mode with no resonant peak, or creep pinned at its fastest time constant, yields to
+//!    input timing; creep to a record's own drift. A named effect's other forms compete in
+//!    later rounds, and after every acceptance an effect the model no longer needs is
+//!    dropped (backward step) and the search goes on.
 
 pub mod cli;
 pub mod fit;
@@ -498,7 +501,8 @@ impl Proposal {
 
 /// The extensions a round tries on `parent`: every effect not yet in it in each of its
 /// forms, `dynamics` in both placements (after the hysteresis, and around it as a
-/// restoring force) while the model has none, and two modes where it has one. Once the
+/// restoring force) while the model has none, two modes where it has one, and each other
+/// form of an effect it has. Once the
 /// hysteresis sits in the feedback loop, `rate-dependence` and the direction form of
 /// `asymmetry` are not offered (see [`Structure::with_forms`]).
 fn candidate_pool(parent: &Structure, opts: &Options) -> Vec<Proposal> {
@@ -514,6 +518,21 @@ fn candidate_pool(parent: &Structure, opts: &Options) -> Vec<Proposal> {
                     parts: vec![(e, Form::TwoModes)],
                     placement: here,
                 });
+            }
+            // The effect's other forms in place of the one it was named with: a form that
+            // won alone may lose once another effect takes its share (a two-element creep
+            // beside a rate-dependence, where the creep is logarithmic over decades).
+            if e != Effect::Dynamics {
+                for &f in e.forms() {
+                    if parent.form(e) != Some(f)
+                        && !(here == Placement::Feedback && f == Form::Direction)
+                    {
+                        pool.push(Proposal {
+                            parts: vec![(e, f)],
+                            placement: here,
+                        });
+                    }
+                }
             }
             continue;
         }
@@ -654,6 +673,24 @@ fn resonant(f: &Fitted, dt: f64) -> Option<bool> {
             .iter()
             .any(|&(hz, zeta)| zeta < RESONANT_ZETA && hz < RESOLVED_FRACTION / dt)
     })
+}
+
+/// How close (log10 units, 12 %) to the fastest time constant creep may take counts as
+/// pinned there.
+const PINNED_LOG10: f64 = 0.05;
+
+/// Whether a fitted Kelvin-Voigt creep does most of its work in an element pinned at the
+/// fastest time constant creep may take (ten samples): the data want a lag faster than any
+/// creep, which input timing holds before the hysteresis.
+fn creep_pinned_fast(f: &Fitted) -> bool {
+    let specs = f.structure.specs();
+    let at = |name: &str| specs.iter().position(|s| s.name == name);
+    let (Some(g), Some(tau), Some(g2)) = (at("creep_g"), at("creep_log10_tau_s"), at("creep_g2"))
+    else {
+        return false;
+    };
+    let th = &f.theta;
+    th[tau] - specs[tau].lower < PINNED_LOG10 && th[g].abs() > th[g2].abs()
 }
 
 fn judge(c: &Evaluated, parent: &Evaluated, g: &Gate) -> Verdict {
@@ -1056,6 +1093,18 @@ pub fn diagnose_with_tests(
             ));
             best = Some(t);
         }
+        // Creep pinned at its fastest time constant is a lag: input timing that passes is
+        // named first (the backward step drops it if creep, named later, explains it).
+        if let (Some(b), Some(t)) = (best, best_timing)
+            && pool[b.0].effects() == [Effect::Creep]
+            && creep_pinned_fast(&tried[b.0].fitted)
+        {
+            candidates[b.1].evidence.push_str(&format!(
+                "; its fast element sits at the fastest creep time constant (ten samples): a lag; input timing ({}) passes too and is named first",
+                pool[t.0].name()
+            ));
+            best = Some(t);
+        }
         let mut chosen: Option<(Proposal, Evaluated, usize)> = best.map(|(i, at, _)| {
             let c = tried.get(i).expect("index of a candidate");
             (pool[i].clone(), c.clone(), at)
@@ -1149,58 +1198,61 @@ pub fn diagnose_with_tests(
             c
         };
         current_summary = summary(&current, &d, &boot, opts.seed);
-    }
-    // Backward: an accepted effect the final model no longer needs (removing it leaves the
-    // validation RMSE inside the final model's band) is dropped, the least needed first.
-    while left_out.len() >= 2 {
-        let st = current.fitted.structure.clone();
-        let removable: Vec<Effect> = st
-            .effects()
-            .iter()
-            .copied()
-            .filter(|e| left_out.iter().any(|n| n == e.name()))
-            .filter(|e| !(*e == Effect::Dynamics && st.placement() == Placement::Feedback))
-            .collect();
-        let reduced: Vec<Evaluated> = removable
-            .par_iter()
-            .map(|&e| {
-                let smaller = st.without(e);
-                let start = st.embed(&current.fitted.theta, &smaller);
-                let f = fit::fit(
-                    &smaller,
-                    &d.ut,
-                    &d.yt,
-                    Some(&start),
-                    None,
-                    repolish_budget(opts),
-                    opts.seed.wrapping_add(100 + round as u64),
-                );
-                evaluate(f, &d, opts)
-            })
-            .collect();
-        let band = current_summary.validate_band;
-        let drop = removable
-            .iter()
-            .zip(&reduced)
-            .filter(|(_, r)| r.validate_rmse <= band[1])
-            .min_by(|a, b| a.1.validate_ic.total_cmp(&b.1.validate_ic));
-        evaluations += reduced.iter().map(|r| r.fitted.evaluations).sum::<u64>();
-        let Some((&e, r)) = drop else { break };
-        let fmt = |x: f64| crate::report::table::sig(x, 3);
-        for c in candidates.iter_mut().filter(|c| c.accepted && !c.dropped) {
-            if c.name.split('+').any(|n| n == e.name()) {
-                c.dropped = true;
-                c.evidence.push_str(&format!(
-                    "; dropped by the backward step: without it the final model's validation RMSE is {} (band [{}, {}] {unit})",
-                    fmt(r.validate_rmse),
-                    fmt(band[0]),
-                    fmt(band[1])
-                ));
+        // Backward, after every acceptance: an accepted effect the model no longer needs
+        // (removing it leaves the validation RMSE inside the model's band) is dropped, the
+        // least needed first, and the search goes on from the smaller model (an effect that
+        // stood in for two, e.g. a fast creep for an input lag and its initial state for a
+        // drift, leaves room for the second once the first is named).
+        while left_out.len() >= 2 {
+            let st = current.fitted.structure.clone();
+            let removable: Vec<Effect> = st
+                .effects()
+                .iter()
+                .copied()
+                .filter(|e| left_out.iter().any(|n| n == e.name()))
+                .filter(|e| !(*e == Effect::Dynamics && st.placement() == Placement::Feedback))
+                .collect();
+            let reduced: Vec<Evaluated> = removable
+                .par_iter()
+                .map(|&e| {
+                    let smaller = st.without(e);
+                    let start = st.embed(&current.fitted.theta, &smaller);
+                    let f = fit::fit(
+                        &smaller,
+                        &d.ut,
+                        &d.yt,
+                        Some(&start),
+                        None,
+                        repolish_budget(opts),
+                        opts.seed.wrapping_add(100 + round as u64),
+                    );
+                    evaluate(f, &d, opts)
+                })
+                .collect();
+            let band = current_summary.validate_band;
+            let drop = removable
+                .iter()
+                .zip(&reduced)
+                .filter(|(_, r)| r.validate_rmse <= band[1])
+                .min_by(|a, b| a.1.validate_ic.total_cmp(&b.1.validate_ic));
+            evaluations += reduced.iter().map(|r| r.fitted.evaluations).sum::<u64>();
+            let Some((&e, r)) = drop else { break };
+            let fmt = |x: f64| crate::report::table::sig(x, 3);
+            for c in candidates.iter_mut().filter(|c| c.accepted && !c.dropped) {
+                if c.name.split('+').any(|n| n == e.name()) {
+                    c.dropped = true;
+                    c.evidence.push_str(&format!(
+                        "; dropped by the backward step: without it the final model's validation RMSE is {} (band [{}, {}] {unit})",
+                        fmt(r.validate_rmse),
+                        fmt(band[0]),
+                        fmt(band[1])
+                    ));
+                }
             }
+            left_out.retain(|n| n != e.name());
+            current = r.clone();
+            current_summary = summary(&current, &d, &boot, opts.seed);
         }
-        left_out.retain(|n| n != e.name());
-        current = r.clone();
-        current_summary = summary(&current, &d, &boot, opts.seed);
     }
     let free_runs: Vec<FreeRun> = tests
         .iter()
@@ -1287,11 +1339,11 @@ mod tests {
     use super::*;
     use crate::physics::structure::tests::theta_with;
 
-    /// A fitted structure with the given mode parameters (the linear part is not looked at).
-    fn fitted(form: Form, values: &[(&str, f64)], dt: f64) -> Fitted {
+    /// A fitted structure with one effect's parameters (the linear part is not looked at).
+    fn fitted_with(effect: Effect, form: Form, values: &[(&str, f64)], dt: f64) -> Fitted {
         let u: Vec<f64> = (0..400).map(|k| (k as f64 * 0.05).sin()).collect();
         let st = Structure::with_forms(
-            &[(Effect::Dynamics, form)],
+            &[(effect, form)],
             Some(1.0),
             Context::from_training(&u, dt),
             Placement::After,
@@ -1304,6 +1356,76 @@ mod tests {
             linear,
             evaluations: 0,
         }
+    }
+
+    fn fitted(form: Form, values: &[(&str, f64)], dt: f64) -> Fitted {
+        fitted_with(Effect::Dynamics, form, values, dt)
+    }
+
+    /// Creep whose larger element sits at ten samples is a lag; a slow element that does
+    /// most of the work, or a fast one just off the bound, is creep.
+    #[test]
+    fn creep_is_a_lag_when_its_main_element_is_pinned_at_ten_samples() {
+        let dt = 1e-3;
+        let pinned = |tau: f64, g: f64, g2: f64| {
+            let f = fitted_with(
+                Effect::Creep,
+                Form::KelvinVoigt,
+                &[
+                    ("creep_g", g),
+                    ("creep_log10_tau_s", tau.log10()),
+                    ("creep_g2", g2),
+                    ("creep_log10_tau2_s", 2f64.log10()),
+                ],
+                dt,
+            );
+            creep_pinned_fast(&f)
+        };
+        assert!(pinned(10.0 * dt, 0.3, 0.05));
+        assert!(pinned(11.0 * dt, 0.3, 0.05), "within 12 % of the bound");
+        assert!(
+            !pinned(10.0 * dt, 0.05, 0.3),
+            "the slow element does the work"
+        );
+        assert!(!pinned(20.0 * dt, 0.3, 0.05), "off the bound");
+        let log = fitted_with(
+            Effect::Creep,
+            Form::Logarithmic,
+            &[("creep_log_gain", 0.1)],
+            dt,
+        );
+        assert!(
+            !creep_pinned_fast(&log),
+            "logarithmic creep has no free time constant"
+        );
+    }
+
+    /// A named effect's other forms are offered in later rounds (not dynamics, which has
+    /// its own upgrade from one mode to two).
+    #[test]
+    fn the_pool_offers_a_named_effects_other_forms() {
+        let u: Vec<f64> = (0..400).map(|k| (k as f64 * 0.05).sin()).collect();
+        let parent = Structure::with_forms(
+            &[
+                (Effect::Creep, Form::KelvinVoigt),
+                (Effect::Dynamics, Form::OneMode),
+            ],
+            Some(1.0),
+            Context::from_training(&u, 1e-3),
+            Placement::After,
+        );
+        let pool = candidate_pool(&parent, &Options::default());
+        let has = |e: Effect, f: Form| pool.iter().any(|p| p.parts == [(e, f)]);
+        assert!(has(Effect::Creep, Form::Logarithmic));
+        assert!(
+            !has(Effect::Creep, Form::KelvinVoigt),
+            "not the form it has"
+        );
+        assert!(has(Effect::Dynamics, Form::TwoModes));
+        assert!(
+            has(Effect::OffsetDrift, Form::Spline),
+            "new effects as before"
+        );
     }
 
     /// The rule that recasts a mode as input timing: a resonance needs a 2x peak (ζ below

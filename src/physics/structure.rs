@@ -23,7 +23,9 @@
 //!   with `τ_r` over its RMS on the training data: loops widen with rate.
 //! - `creep`: a two-element Kelvin-Voigt chain `D + g₁ lag(τ₁) D + g₂ lag(τ₂) D`, one fast
 //!   element (τ₁ from 10 samples to a quarter of the record) and one slow (τ₂ from a
-//!   quarter of the record to ten records), as a piezo creeps on both scales.
+//!   quarter of the record to ten records), as a piezo creeps on both scales. Each
+//!   element's state at a record's start is the record's own, within the element's gain
+//!   times the output's span ([`Structure::state_bounds`]).
 //! - `dynamics`: second-order mode `ÿ + 2ζω ẏ + ω² y = ω² x` after the hysteresis,
 //!   parametrised by `p = 1/ω` (s; `p = 0` passes `x` through) and `ζ`.
 //! - `offset-drift`: `y += a1 t/T + a2 (t/T)²` (T the training duration), two more
@@ -832,6 +834,38 @@ impl Structure {
         self.coefs_where(|n| n == "d0" || n.starts_with("drift_") || n.starts_with("creep_x0"))
     }
 
+    /// Largest magnitude of each creep initial state (coefficient index, bound) on a record
+    /// whose output spans `range`: an element of gain `g` low-passes `g D`, so its state
+    /// departs from rest by at most `g` times the span of `D` (below the output's). Without
+    /// the bound a slow element of no gain is a free decay per record: a drift named creep.
+    pub fn state_bounds(&self, theta: &[f64], range: f64) -> Vec<(usize, f64)> {
+        let Some(form) = self.form(Effect::Creep) else {
+            return Vec::new();
+        };
+        let sh = self.shape(theta);
+        let gains: Vec<f64> = match form {
+            Form::Logarithmic => {
+                let total = sh.creep_log.abs() * log_creep_taus(&self.ctx).len() as f64;
+                vec![total, total]
+            }
+            _ => vec![sh.creep_g.abs(), sh.creep_g2.abs()],
+        };
+        self.initial_state_coefs()
+            .into_iter()
+            .zip(gains)
+            .map(|(j, g)| {
+                (
+                    j,
+                    if (g * range).is_finite() {
+                        g * range
+                    } else {
+                        0.0
+                    },
+                )
+            })
+            .collect()
+    }
+
     fn coefs_where(&self, keep: impl Fn(&str) -> bool) -> Vec<usize> {
         self.linear_names()
             .iter()
@@ -1409,7 +1443,14 @@ impl Structure {
                 status,
             };
         }
-        let (coef, j) = proj.solve(varying);
+        let fixed_at = &proj.fixed_at;
+        let varying_at = |j: usize| j - fixed_at.iter().filter(|&&f| f < j).count();
+        let bounds: Vec<(usize, f64)> = self
+            .state_bounds(theta, span(y))
+            .into_iter()
+            .map(|(j, b)| (varying_at(j), b))
+            .collect();
+        let (coef, j) = proj.solve(varying, &bounds);
         let cost = if j.is_finite() { j.min(cap) } else { cap };
         LinearFit { coef, cost, status }
     }
@@ -1456,7 +1497,15 @@ impl Structure {
                 })
                 .collect();
             let sub: Vec<Vec<f64>> = nuisance.iter().map(|&j| cols[j][..n].to_vec()).collect();
-            for (&j, b) in nuisance.iter().zip(least_squares(&sub, &rest)) {
+            let bounds: Vec<(usize, f64)> = self
+                .state_bounds(theta, span(&y[..n]))
+                .into_iter()
+                .filter_map(|(j, b)| nuisance.iter().position(|&k| k == j).map(|i| (i, b)))
+                .collect();
+            for (&j, b) in nuisance
+                .iter()
+                .zip(bounded_least_squares(&sub, &rest, &bounds))
+            {
                 c[j] = b;
             }
         }
@@ -1728,7 +1777,8 @@ impl Projection {
 
     /// Coefficients (in coefficient order) and `Σ e²/2` for the shape-dependent columns
     /// `varying` (in their order, without the fixed ones).
-    fn solve(&self, mut varying: Vec<Vec<f64>>) -> (Vec<f64>, f64) {
+    /// `bounds`: (index in `varying`, largest magnitude) of bounded coefficients.
+    fn solve(&self, mut varying: Vec<Vec<f64>>, bounds: &[(usize, f64)]) -> (Vec<f64>, f64) {
         let m = self.q.len();
         let n = self.y_perp.len();
         // Qᵀ V, and V with the fixed columns projected out.
@@ -1747,7 +1797,7 @@ impl Projection {
                 c
             })
             .collect();
-        let bv = least_squares(&varying, &self.y_perp);
+        let bv = bounded_least_squares(&varying, &self.y_perp, bounds);
         let mut e = self.y_perp.clone();
         for (v, b) in varying.iter().zip(&bv) {
             if *b != 0.0 {
@@ -1783,6 +1833,68 @@ pub fn least_squares(cols: &[Vec<f64>], y: &[f64]) -> Vec<f64> {
         .map(|qi| qi.as_ref().map_or(0.0, |qi| dot(qi, y)))
         .collect();
     back_substitute(&q, &r, &qty)
+}
+
+/// [`least_squares`] with some coefficients bounded in magnitude (`(index, bound)`): a
+/// coefficient beyond its bound is held there and the others refitted, until none is
+/// beyond (at most once per bounded coefficient).
+pub fn bounded_least_squares(cols: &[Vec<f64>], y: &[f64], bounds: &[(usize, f64)]) -> Vec<f64> {
+    let mut b = least_squares(cols, y);
+    if bounds.is_empty() {
+        return b;
+    }
+    let mut held: Vec<(usize, f64)> = Vec::new();
+    for _ in 0..bounds.len() {
+        let beyond: Vec<(usize, f64)> = bounds
+            .iter()
+            .filter(|(j, _)| !held.iter().any(|h| h.0 == *j))
+            .filter_map(|&(j, lim)| {
+                let x = *b.get(j)?;
+                (x.abs() > lim).then(|| (j, lim.copysign(x)))
+            })
+            .collect();
+        if beyond.is_empty() {
+            break;
+        }
+        held.extend(beyond);
+        let mut target = y.to_vec();
+        for &(j, x) in &held {
+            target
+                .iter_mut()
+                .zip(&cols[j])
+                .for_each(|(t, c)| *t -= x * c);
+        }
+        let free: Vec<Vec<f64>> = cols
+            .iter()
+            .enumerate()
+            .map(|(j, c)| {
+                if held.iter().any(|h| h.0 == j) {
+                    vec![0.0; c.len()]
+                } else {
+                    c.clone()
+                }
+            })
+            .collect();
+        b = least_squares(&free, &target);
+        for &(j, x) in &held {
+            b[j] = x;
+        }
+    }
+    b
+}
+
+/// Max minus min of a record (0 if empty or not finite).
+fn span(y: &[f64]) -> f64 {
+    let (lo, hi) = y
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
+            (lo.min(x), hi.max(x))
+        });
+    if hi >= lo && (hi - lo).is_finite() {
+        hi - lo
+    } else {
+        0.0
+    }
 }
 
 #[cfg(test)]
@@ -2301,6 +2413,72 @@ pub(crate) mod tests {
         assert!(st.fit_linear(&th, &u, &y).cost > 1e-6);
     }
 
+    #[test]
+    fn bounded_least_squares_holds_a_coefficient_at_its_bound_and_refits_the_rest() {
+        let a: Vec<f64> = (0..50).map(|k| 1.0 + 0.1 * k as f64).collect();
+        let b: Vec<f64> = (0..50).map(|k| ((k as f64) * 0.3).sin()).collect();
+        let y: Vec<f64> = a.iter().zip(&b).map(|(x, z)| 2.0 * x - 5.0 * z).collect();
+        let free = bounded_least_squares(&[a.clone(), b.clone()], &y, &[]);
+        assert!((free[0] - 2.0).abs() < 1e-9 && (free[1] + 5.0).abs() < 1e-9);
+        let held = bounded_least_squares(&[a.clone(), b.clone()], &y, &[(1, 1.5)]);
+        assert_eq!(held[1], -1.5);
+        // The other coefficient is the least-squares one given the held value.
+        let rest: Vec<f64> = y.iter().zip(&b).map(|(v, z)| v + 1.5 * z).collect();
+        assert!((held[0] - least_squares(&[a], &rest)[0]).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_creep_element_without_gain_cannot_stand_for_a_drift() {
+        let (u, ctx, plain, theta, y0) = slow_plain_record();
+        let dt = ctx.dt;
+        // A slow decay of the record's own (a drift), not driven by the input.
+        let y: Vec<f64> = y0
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + 0.02 * (-(k as f64) * dt / 8.0).exp())
+            .collect();
+        let st = Structure::with_forms(
+            &[(Effect::Creep, Form::KelvinVoigt)],
+            Some(1.0),
+            ctx,
+            Placement::After,
+        );
+        let mut th = plain.embed(&theta, &st);
+        let set = |th: &mut Vec<f64>, name: &str, x: f64| {
+            let i = st.specs().iter().position(|s| s.name == name).unwrap();
+            th[i] = x;
+        };
+        set(&mut th, "creep_log10_tau2_s", 8f64.log10());
+        // No gain: the initial states are held at zero, the decay stays in the residual.
+        let none = st.fit_linear(&th, &u, &y);
+        let x0 = st.initial_state_coefs();
+        assert!(x0.iter().all(|&j| none.coef[j] == 0.0), "{:?}", none.coef);
+        // Creep of no gain is the plain model exactly, on the plain model's cost.
+        let plain_cost = plain.fit_linear(&theta, &u, &y).cost;
+        assert!(
+            plain_cost > 1e-3,
+            "the decay is not in the plain model: {plain_cost}"
+        );
+        assert!(
+            (none.cost / plain_cost - 1.0).abs() < 1e-9,
+            "{} vs {plain_cost}",
+            none.cost
+        );
+        // With gain, the state may depart from rest up to the gain times the output's span.
+        set(&mut th, "creep_g2", 0.2);
+        let some = st.fit_linear(&th, &u, &y);
+        let bound = st.state_bounds(&th, span(&y));
+        assert!(bound.iter().any(|b| b.1 > 0.0));
+        for (j, lim) in bound {
+            assert!(
+                some.coef[j].abs() <= lim + 1e-12,
+                "{} > {lim}",
+                some.coef[j]
+            );
+        }
+        assert!(some.cost < none.cost);
+    }
+
     /// A record cut from a running ramp starts in motion: the rate's memory starts at that
     /// rate, so a rate-dependent gain is the same from the first sample (no start-up
     /// transient of the rate time constant for a drift or creep to soak up).
@@ -2606,7 +2784,8 @@ pub(crate) mod tests {
                 .collect();
             let (cols, _) = st.columns(&theta, &u);
             assert_eq!(cols.len(), st.linear_names().len(), "{}", st.label());
-            let direct = least_squares(&cols, &y);
+            // Creep at no gain holds its initial states at zero in both.
+            let direct = bounded_least_squares(&cols, &y, &st.state_bounds(&theta, span(&y)));
             let fit = st.fit_linear(&theta, &u, &y);
             let e: f64 = (0..u.len())
                 .map(|k| {
