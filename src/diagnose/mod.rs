@@ -184,7 +184,11 @@ pub struct Candidate {
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub dropped: bool,
     pub params: BTreeMap<String, f64>,
+    /// The gate: ΔBIC, the validation band, the residual battery.
     pub evidence: String,
+    /// Where a tie rule or the backward step overrode the gate's choice, and why.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
     /// Model evaluations its fit took (the search, the polish and the validation states).
     pub evaluations: u64,
 }
@@ -1038,6 +1042,7 @@ pub fn diagnose_with_tests(
                 dropped: false,
                 params: named(&c.fitted),
                 evidence: v.evidence.clone(),
+                notes: Vec::new(),
                 evaluations: c.fitted.evaluations,
             });
             candidates.len() - 1
@@ -1075,8 +1080,8 @@ pub fn diagnose_with_tests(
             && pool[b.0].effects().contains(&Effect::Creep)
             && train_delta(r.0) <= train_delta(b.0) + opts.bic_margin
         {
-            candidates[b.1].evidence.push_str(&format!(
-                "; transfer: a drift of each record ({}) passes too: taken first, so creep must add what the input drives",
+            candidates[b.1].notes.push(format!(
+                "transfer: a drift of each record ({}) passes too: taken first, so creep must add what the input drives",
                 pool[r.0].form()
             ));
             best = Some(r);
@@ -1086,8 +1091,8 @@ pub fn diagnose_with_tests(
             && !parent.has(Effect::Dynamics)
             && resonant(&tried[b.0].fitted, dt) == Some(false)
         {
-            candidates[b.1].evidence.push_str(&format!(
-                "; no resonance (no mode peaks 2x below {} of the sampling rate): a low-pass; input timing ({}) passes too and is named instead",
+            candidates[b.1].notes.push(format!(
+                "no resonance (no mode peaks 2x below {} of the sampling rate): a low-pass; input timing ({}) passes too and is named instead",
                 RESOLVED_FRACTION,
                 pool[t.0].name()
             ));
@@ -1099,8 +1104,8 @@ pub fn diagnose_with_tests(
             && pool[b.0].effects() == [Effect::Creep]
             && creep_pinned_fast(&tried[b.0].fitted)
         {
-            candidates[b.1].evidence.push_str(&format!(
-                "; its fast element sits at the fastest creep time constant (ten samples): a lag; input timing ({}) passes too and is named first",
+            candidates[b.1].notes.push(format!(
+                "its fast element sits at the fastest creep time constant (ten samples): a lag; input timing ({}) passes too and is named first",
                 pool[t.0].name()
             ));
             best = Some(t);
@@ -1241,8 +1246,8 @@ pub fn diagnose_with_tests(
             for c in candidates.iter_mut().filter(|c| c.accepted && !c.dropped) {
                 if c.name.split('+').any(|n| n == e.name()) {
                     c.dropped = true;
-                    c.evidence.push_str(&format!(
-                        "; dropped by the backward step: without it the final model's validation RMSE is {} (band [{}, {}] {unit})",
+                    c.notes.push(format!(
+                        "dropped by the backward step: without it the final model's validation RMSE is {} (band [{}, {}] {unit})",
                         fmt(r.validate_rmse),
                         fmt(band[0]),
                         fmt(band[1])

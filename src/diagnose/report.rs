@@ -92,6 +92,9 @@ pub fn text(d: &Diagnosis) -> String {
             f(c.validate_rmse),
             f(c.validate_ic)
         );
+        for n in &c.notes {
+            let _ = writeln!(s, "      note: {n}");
+        }
     }
     if d.candidates.iter().any(|c| c.dropped) {
         let _ = writeln!(
