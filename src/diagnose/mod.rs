@@ -242,9 +242,7 @@ impl Diagnosis {
     /// The accepted effects in order, `dynamics(feedback)` when the hysteresis was placed
     /// inside the mechanical feedback.
     pub fn accepted_labels(&self) -> Vec<String> {
-        self.candidates
-            .iter()
-            .filter(|c| c.accepted && !c.dropped)
+        self.in_final()
             .flat_map(|c| {
                 c.name.split('+').map(|n| match c.placement.as_deref() {
                     Some("feedback") if n == "dynamics" => format!("{n}(feedback)"),
@@ -252,6 +250,24 @@ impl Diagnosis {
                 })
             })
             .collect()
+    }
+}
+
+impl Diagnosis {
+    /// The accepted candidates the final model holds: not dropped, and not replaced by a
+    /// later form of the same effects (a two-element creep by a logarithmic one).
+    pub fn in_final(&self) -> impl Iterator<Item = &Candidate> {
+        let held = |c: &Candidate| c.accepted && !c.dropped;
+        self.candidates
+            .iter()
+            .enumerate()
+            .filter(move |(i, c)| {
+                held(c)
+                    && !self.candidates[i + 1..]
+                        .iter()
+                        .any(|l| held(l) && l.name == c.name)
+            })
+            .map(|(_, c)| c)
     }
 }
 

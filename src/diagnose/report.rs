@@ -102,7 +102,7 @@ pub fn text(d: &Diagnosis) -> String {
             "  (- accepted, then dropped by the backward step: the final model does not need it)"
         );
     }
-    for c in d.candidates.iter().filter(|c| c.accepted && !c.dropped) {
+    for c in d.in_final() {
         let _ = writeln!(s, "{} [{}]: {}", c.name, c.form, c.transfer);
     }
     if !d.nuisances.is_empty() {
