@@ -239,21 +239,6 @@ pub struct Diagnosis {
 }
 
 impl Diagnosis {
-    /// The accepted effects in order, `dynamics(feedback)` when the hysteresis was placed
-    /// inside the mechanical feedback.
-    pub fn accepted_labels(&self) -> Vec<String> {
-        self.in_final()
-            .flat_map(|c| {
-                c.name.split('+').map(|n| match c.placement.as_deref() {
-                    Some("feedback") if n == "dynamics" => format!("{n}(feedback)"),
-                    _ => n.to_string(),
-                })
-            })
-            .collect()
-    }
-}
-
-impl Diagnosis {
     /// The accepted candidates the final model holds: not dropped, and not replaced by a
     /// later form of the same effects (a two-element creep by a logarithmic one).
     pub fn in_final(&self) -> impl Iterator<Item = &Candidate> {
@@ -268,6 +253,19 @@ impl Diagnosis {
                         .any(|l| held(l) && l.name == c.name)
             })
             .map(|(_, c)| c)
+    }
+
+    /// The accepted effects in order, `dynamics(feedback)` when the hysteresis was placed
+    /// inside the mechanical feedback.
+    pub fn accepted_labels(&self) -> Vec<String> {
+        self.in_final()
+            .flat_map(|c| {
+                c.name.split('+').map(|n| match c.placement.as_deref() {
+                    Some("feedback") if n == "dynamics" => format!("{n}(feedback)"),
+                    _ => n.to_string(),
+                })
+            })
+            .collect()
     }
 }
 
