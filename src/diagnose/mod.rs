@@ -1100,29 +1100,29 @@ pub fn diagnose_with_tests(
             ));
             best = Some(r);
         }
-        // A mode with no resonance is a low-pass: when input timing passes too, it is named.
-        if let (Some(b), Some(t)) = (best, best_timing)
-            && !parent.has(Effect::Dynamics)
-            && resonant(&tried[b.0].fitted, dt) == Some(false)
-        {
-            candidates[b.1].notes.push(format!(
-                "no resonance (no mode peaks 2x below {} of the sampling rate): a low-pass; input timing ({}) passes too and is named instead",
-                RESOLVED_FRACTION,
-                pool[t.0].name()
-            ));
-            best = Some(t);
-        }
-        // Creep pinned at its fastest time constant is a lag: input timing that passes is
-        // named first (the backward step drops it if creep, named later, explains it).
-        if let (Some(b), Some(t)) = (best, best_timing)
-            && pool[b.0].effects() == [Effect::Creep]
-            && creep_pinned_fast(&tried[b.0].fitted)
-        {
-            candidates[b.1].notes.push(format!(
-                "its fast element sits at the fastest creep time constant (ten samples): a lag; input timing ({}) passes too and is named first",
-                pool[t.0].name()
-            ));
-            best = Some(t);
+        // A lag in disguise yields to input timing that passes too: a mode with no
+        // resonance is a low-pass; creep pinned at its fastest time constant is a lag
+        // faster than any creep (the backward step drops the timing if creep, named
+        // later, explains it).
+        if let (Some(b), Some(t)) = (best, best_timing) {
+            let fitted = &tried[b.0].fitted;
+            let why = if !parent.has(Effect::Dynamics) && resonant(fitted, dt) == Some(false) {
+                Some(format!(
+                    "no resonance (no mode peaks 2x below {RESOLVED_FRACTION} of the sampling rate): a low-pass; input timing ({}) passes too and is named instead",
+                    pool[t.0].name()
+                ))
+            } else if pool[b.0].effects() == [Effect::Creep] && creep_pinned_fast(fitted) {
+                Some(format!(
+                    "its fast element sits at the fastest creep time constant (ten samples): a lag; input timing ({}) passes too and is named first",
+                    pool[t.0].name()
+                ))
+            } else {
+                None
+            };
+            if let Some(why) = why {
+                candidates[b.1].notes.push(why);
+                best = Some(t);
+            }
         }
         let mut chosen: Option<(Proposal, Evaluated, usize)> = best.map(|(i, at, _)| {
             let c = tried.get(i).expect("index of a candidate");

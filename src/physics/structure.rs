@@ -1446,7 +1446,7 @@ impl Structure {
         let fixed_at = &proj.fixed_at;
         let varying_at = |j: usize| j - fixed_at.iter().filter(|&&f| f < j).count();
         let bounds: Vec<(usize, f64)> = self
-            .state_bounds(theta, span(y))
+            .state_bounds(theta, proj.span)
             .into_iter()
             .map(|(j, b)| (varying_at(j), b))
             .collect();
@@ -1674,6 +1674,9 @@ pub struct Projection {
     y_perp: Vec<f64>,
     /// `Qᵀ y`.
     qty: Vec<f64>,
+    /// Span of `y` ([`span`]), which bounds the creep states: once per fit, not per
+    /// evaluation.
+    span: f64,
 }
 
 /// `v` minus its projections on `q` (twice: Gram-Schmidt with reorthogonalisation), the
@@ -1772,6 +1775,7 @@ impl Projection {
             r,
             y_perp,
             qty,
+            span: span(y),
         }
     }
 
@@ -2443,12 +2447,13 @@ pub(crate) mod tests {
             ctx,
             Placement::After,
         );
-        let mut th = plain.embed(&theta, &st);
-        let set = |th: &mut Vec<f64>, name: &str, x: f64| {
-            let i = st.specs().iter().position(|s| s.name == name).unwrap();
-            th[i] = x;
-        };
-        set(&mut th, "creep_log10_tau2_s", 8f64.log10());
+        // The plain record's shape, a slow element of 8 s.
+        let shape = [
+            ("log10_s", -0.4),
+            ("w", 0.6),
+            ("creep_log10_tau2_s", 8f64.log10()),
+        ];
+        let th = theta_with(&st, &shape);
         // No gain: the initial states are held at zero, the decay stays in the residual.
         let none = st.fit_linear(&th, &u, &y);
         let x0 = st.initial_state_coefs();
@@ -2465,7 +2470,7 @@ pub(crate) mod tests {
             none.cost
         );
         // With gain, the state may depart from rest up to the gain times the output's span.
-        set(&mut th, "creep_g2", 0.2);
+        let th = theta_with(&st, &[shape.as_slice(), &[("creep_g2", 0.2)]].concat());
         let some = st.fit_linear(&th, &u, &y);
         let bound = st.state_bounds(&th, span(&y));
         assert!(bound.iter().any(|b| b.1 > 0.0));
