@@ -507,17 +507,29 @@ fn shift(u: &[f64], s: f64, curvature: f64) -> Vec<f64> {
         curvature * t * (1.0 - t) / 2.0 * (2.0 - t) / 3.0,
         curvature * t * (1.0 - t) / 2.0 * (1.0 + t) / 3.0,
     );
-    (0..n as i64)
-        .map(|k| {
-            let (p0, p1, p2, p3) = (at(k - w - 2), at(k - w - 1), at(k - w), at(k - w + 1));
-            let line = p1 + t * (p2 - p1);
-            if curvature == 0.0 || frac == 0.0 {
-                line
-            } else {
-                line - c0 * (p0 - 2.0 * p1 + p2) - c1 * (p1 - 2.0 * p2 + p3)
-            }
-        })
-        .collect()
+    let value = |p0: f64, p1: f64, p2: f64, p3: f64| {
+        let line = p1 + t * (p2 - p1);
+        if curvature == 0.0 || frac == 0.0 {
+            line
+        } else {
+            line - c0 * (p0 - 2.0 * p1 + p2) - c1 * (p1 - 2.0 * p2 + p3)
+        }
+    };
+    let clamped = |k: i64| value(at(k - w - 2), at(k - w - 1), at(k - w), at(k - w + 1));
+    // Samples `[lo, hi)` read four inputs inside the record: no clamping (every
+    // evaluation shifts the whole input).
+    let lo = (w + 2).clamp(0, n as i64);
+    let hi = (n as i64 - 1 + w).clamp(lo, n as i64);
+    let mut out = Vec::with_capacity(n);
+    out.extend((0..lo).map(clamped));
+    out.extend(
+        u[((lo - w - 2).max(0) as usize).min(n)..]
+            .windows(4)
+            .take((hi - lo) as usize)
+            .map(|p| value(p[0], p[1], p[2], p[3])),
+    );
+    out.extend((hi..n as i64).map(clamped));
+    out
 }
 
 impl Structure {
@@ -1659,21 +1671,25 @@ impl Structure {
 }
 
 /// Least squares with some columns fixed across evaluations (the constant, the drift):
-/// their orthonormal basis and the data with them projected out, so an evaluation
-/// orthogonalises only its shape-dependent columns against them (block Gram-Schmidt;
-/// the same solution as [`least_squares`] on all columns).
+/// the data with them projected out once, so an evaluation projects only its
+/// shape-dependent columns off them (the same solution as [`least_squares`] on all
+/// columns). The fixed columns are kept raw, each on its support, with the `R` of their QR
+/// (`HᵀH = RᵀR`): projecting off a spline's hats then costs a few operations per sample
+/// whatever their number, where an orthonormal basis is dense.
 #[derive(Clone, Debug)]
 pub struct Projection {
     /// Positions of the fixed columns among the coefficients.
     fixed_at: Vec<usize>,
-    /// Orthonormal basis of the fixed columns (None: dependent on the earlier ones).
-    q: Vec<Option<Vec<f64>>>,
+    /// Each fixed column on its support: first sample and the values from there.
+    fixed: Vec<(usize, Vec<f64>)>,
+    /// Whether each fixed column is independent of the earlier ones (kept).
+    kept: Vec<bool>,
     /// `R` of the fixed columns' QR (upper triangle).
     r: Vec<Vec<f64>>,
     /// `y` minus its projection on the fixed columns.
     y_perp: Vec<f64>,
-    /// `Qᵀ y`.
-    qty: Vec<f64>,
+    /// `Hᵀ y`.
+    hty: Vec<f64>,
     /// Span of `y` ([`span`]), which bounds the creep states: once per fit, not per
     /// evaluation.
     span: f64,
@@ -1691,7 +1707,6 @@ fn orthogonalise(v: &mut [f64], q: &[Option<Vec<f64>>], r: &mut [f64]) {
         }
     }
 }
-
 /// `Σ aᵢ bᵢ` in eight interleaved partial sums: a single running sum waits on each add's
 /// latency, and these dot products over whole records are most of a fit's linear algebra.
 fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -1764,34 +1779,97 @@ impl Projection {
     /// The projection of `y` off `fixed` (columns of `y`'s length), which sit at
     /// `fixed_at` among the coefficients.
     pub fn new(fixed_at: Vec<usize>, fixed: &[Vec<f64>], y: &[f64]) -> Self {
-        let m = fixed.len();
-        let (q, r) = qr(fixed, y.len());
-        let mut y_perp = y.to_vec();
-        let mut qty = vec![0.0; m];
-        orthogonalise(&mut y_perp, &q, &mut qty);
-        Projection {
+        let n = y.len();
+        let (q, r) = qr(fixed, n);
+        let kept = q.iter().map(Option::is_some).collect();
+        let fixed = fixed
+            .iter()
+            .map(|c| {
+                let c = &c[..n];
+                let lo = c.iter().position(|&x| x != 0.0).unwrap_or(0);
+                let hi = c.iter().rposition(|&x| x != 0.0).map_or(lo, |i| i + 1);
+                (lo, c[lo..hi].to_vec())
+            })
+            .collect();
+        let mut p = Projection {
             fixed_at,
-            q,
+            fixed,
+            kept,
             r,
-            y_perp,
-            qty,
+            y_perp: y.to_vec(),
+            hty: Vec::new(),
             span: span(y),
+        };
+        let mut y_perp = std::mem::take(&mut p.y_perp);
+        p.hty = p.project(&mut y_perp);
+        p.y_perp = y_perp;
+        p
+    }
+
+    /// `Hᵀ v`, each fixed column over its support.
+    fn ht(&self, v: &[f64]) -> Vec<f64> {
+        self.fixed.iter().map(|(lo, c)| dot(&v[*lo..], c)).collect()
+    }
+
+    /// `(HᵀH)⁻¹ c` over the kept columns (`Rᵀ z = c`, then `R w = z`); dropped ones get 0.
+    fn gram_solve(&self, c: &[f64]) -> Vec<f64> {
+        let m = c.len();
+        let mut z = vec![0.0; m];
+        for j in 0..m {
+            if !self.kept[j] {
+                continue;
+            }
+            let s: f64 = (0..j)
+                .filter(|&i| self.kept[i])
+                .map(|i| self.r[i][j] * z[i])
+                .sum();
+            z[j] = (c[j] - s) / self.r[j][j];
         }
+        let mut w = vec![0.0; m];
+        for j in (0..m).rev() {
+            if !self.kept[j] {
+                continue;
+            }
+            let s: f64 = (j + 1..m)
+                .filter(|&k| self.kept[k])
+                .map(|k| self.r[j][k] * w[k])
+                .sum();
+            w[j] = (z[j] - s) / self.r[j][j];
+        }
+        w
+    }
+
+    /// `v` minus its projection on the fixed columns (twice: the second pass removes what
+    /// round-off left of the first); returns `Hᵀ v` of the `v` given.
+    fn project(&self, v: &mut [f64]) -> Vec<f64> {
+        let first = self.ht(v);
+        let mut c = first.clone();
+        for pass in 0..2 {
+            if pass > 0 {
+                c = self.ht(v);
+            }
+            let w = self.gram_solve(&c);
+            for ((lo, col), wi) in self.fixed.iter().zip(&w) {
+                if *wi != 0.0 {
+                    v[*lo..].iter_mut().zip(col).for_each(|(x, a)| *x -= wi * a);
+                }
+            }
+        }
+        first
     }
 
     /// Coefficients (in coefficient order) and `Σ e²/2` for the shape-dependent columns
     /// `varying` (in their order, without the fixed ones).
     /// `bounds`: (index in `varying`, largest magnitude) of bounded coefficients.
     fn solve(&self, mut varying: Vec<Vec<f64>>, bounds: &[(usize, f64)]) -> (Vec<f64>, f64) {
-        let m = self.q.len();
+        let m = self.fixed.len();
         let n = self.y_perp.len();
-        // Qᵀ V, and V with the fixed columns projected out.
-        let qtv: Vec<Vec<f64>> = varying
+        // Hᵀ V, and V with the fixed columns projected out.
+        let htv: Vec<Vec<f64>> = varying
             .iter_mut()
             .map(|v| {
-                let mut c = vec![0.0; m];
                 let norm0 = dot(&v[..n], &v[..n]).sqrt();
-                orthogonalise(&mut v[..n], &self.q, &mut c);
+                let c = self.project(&mut v[..n]);
                 // A column inside the fixed span is dependent: drop it, as least squares
                 // on all columns would.
                 let norm = dot(&v[..n], &v[..n]).sqrt();
@@ -1801,7 +1879,7 @@ impl Projection {
                 c
             })
             .collect();
-        let bv = bounded_least_squares(&varying, &self.y_perp, bounds);
+        let bv = gram_least_squares(&varying, &self.y_perp, bounds);
         let mut e = self.y_perp.clone();
         for (v, b) in varying.iter().zip(&bv) {
             if *b != 0.0 {
@@ -1809,11 +1887,16 @@ impl Projection {
             }
         }
         let cost = 0.5 * dot(&e, &e);
-        // R b_f = Qᵀ y - Qᵀ V b_v.
+        // HᵀH b_f = Hᵀ y - Hᵀ V b_v.
         let rhs: Vec<f64> = (0..m)
-            .map(|i| self.qty[i] - qtv.iter().zip(&bv).map(|(c, b)| c[i] * b).sum::<f64>())
+            .map(|i| self.hty[i] - htv.iter().zip(&bv).map(|(c, b)| c[i] * b).sum::<f64>())
             .collect();
-        let bf = back_substitute(&self.q, &self.r, &rhs);
+        let bf = self.gram_solve(&rhs);
+        let bf = if bf.iter().all(|x| x.is_finite()) {
+            bf
+        } else {
+            vec![0.0; m]
+        };
         let total = bv.len() + m;
         let mut coef = Vec::with_capacity(total);
         let (mut fi, mut vi) = (bf.into_iter(), bv.into_iter());
@@ -1883,6 +1966,124 @@ pub fn bounded_least_squares(cols: &[Vec<f64>], y: &[f64], bounds: &[(usize, f64
         for &(j, x) in &held {
             b[j] = x;
         }
+    }
+    b
+}
+
+/// [`bounded_least_squares`] by the normal equations of the columns scaled to unit norm:
+/// one pass per inner product and no column copied, where Gram-Schmidt's passes were most
+/// of an evaluation's linear algebra. Only when every column keeps at least `1e-4` of its
+/// norm outside the earlier ones (the squared condition number then costs at most eight
+/// digits of the coefficients, and only to second order the cost, which the caller takes
+/// from the residual); otherwise, dependent columns included, Gram-Schmidt decides.
+fn gram_least_squares(cols: &[Vec<f64>], y: &[f64], bounds: &[(usize, f64)]) -> Vec<f64> {
+    let m = cols.len();
+    let scale: Vec<f64> = cols
+        .iter()
+        .map(|c| {
+            let d = dot(c, c).sqrt();
+            if d > 0.0 && d.is_finite() {
+                1.0 / d
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let mut g = vec![vec![0.0; m]; m];
+    for i in 0..m {
+        for j in i..m {
+            let x = if scale[i] == 0.0 || scale[j] == 0.0 {
+                0.0
+            } else if i == j {
+                1.0
+            } else {
+                dot(&cols[i], &cols[j]) * scale[i] * scale[j]
+            };
+            g[i][j] = x;
+            g[j][i] = x;
+        }
+    }
+    let gy: Vec<f64> = (0..m)
+        .map(|j| {
+            if scale[j] == 0.0 {
+                0.0
+            } else {
+                dot(&cols[j], y) * scale[j]
+            }
+        })
+        .collect();
+    // Coefficients with `held` (index, value in the columns' own units) fixed; None if the
+    // free columns are near dependent.
+    let solve = |held: &[(usize, f64)]| -> Option<Vec<f64>> {
+        let free: Vec<usize> = (0..m)
+            .filter(|&j| scale[j] != 0.0 && !held.iter().any(|h| h.0 == j))
+            .collect();
+        let rhs: Vec<f64> = free
+            .iter()
+            .map(|&i| {
+                gy[i]
+                    - held
+                        .iter()
+                        .filter(|h| scale[h.0] != 0.0)
+                        .map(|&(j, x)| g[i][j] * x / scale[j])
+                        .sum::<f64>()
+            })
+            .collect();
+        // Cholesky L Lᵀ of the free block.
+        let k = free.len();
+        let mut l = vec![vec![0.0; k]; k];
+        for a in 0..k {
+            let d = g[free[a]][free[a]] - (0..a).map(|c| l[a][c] * l[a][c]).sum::<f64>();
+            if !(d >= 1e-8) {
+                return None;
+            }
+            let da = d.sqrt();
+            l[a][a] = da;
+            for b in a + 1..k {
+                let x = g[free[b]][free[a]] - (0..a).map(|c| l[b][c] * l[a][c]).sum::<f64>();
+                l[b][a] = x / da;
+            }
+        }
+        let mut z = vec![0.0; k];
+        for a in 0..k {
+            let s: f64 = (0..a).map(|c| l[a][c] * z[c]).sum();
+            z[a] = (rhs[a] - s) / l[a][a];
+        }
+        let mut w = vec![0.0; k];
+        for a in (0..k).rev() {
+            let s: f64 = (a + 1..k).map(|c| l[c][a] * w[c]).sum();
+            w[a] = (z[a] - s) / l[a][a];
+        }
+        let mut b = vec![0.0; m];
+        for (a, &j) in free.iter().enumerate() {
+            b[j] = w[a] * scale[j];
+        }
+        for &(j, x) in held {
+            b[j] = x;
+        }
+        b.iter().all(|x| x.is_finite()).then_some(b)
+    };
+    let Some(mut b) = solve(&[]) else {
+        return bounded_least_squares(cols, y, bounds);
+    };
+    let mut held: Vec<(usize, f64)> = Vec::new();
+    for _ in 0..bounds.len() {
+        let beyond: Vec<(usize, f64)> = bounds
+            .iter()
+            .filter(|(j, _)| !held.iter().any(|h| h.0 == *j))
+            .filter_map(|&(j, lim)| {
+                let x = *b.get(j)?;
+                (x.abs() > lim).then(|| (j, lim.copysign(x)))
+            })
+            .collect();
+        if beyond.is_empty() {
+            break;
+        }
+        held.extend(beyond);
+        let Some(next) = solve(&held) else {
+            return bounded_least_squares(cols, y, bounds);
+        };
+        b = next;
     }
     b
 }
@@ -2073,6 +2274,55 @@ pub(crate) mod tests {
                     .map_or(s.neutral, |v| v.1)
             })
             .collect()
+    }
+
+    #[test]
+    fn shift_reads_inside_the_record_as_at_its_ends() {
+        // The direct formula with every index clamped, which `shift` applies at the ends.
+        let reference = |u: &[f64], s: f64, curvature: f64| -> Vec<f64> {
+            let n = u.len() as i64;
+            if s == 0.0 || n < 2 {
+                return u.to_vec();
+            }
+            let (w, t) = (s.floor() as i64, 1.0 - (s - s.floor()));
+            let at = |i: i64| u[i.clamp(0, n - 1) as usize];
+            let c0 = curvature * t * (1.0 - t) / 2.0 * (2.0 - t) / 3.0;
+            let c1 = curvature * t * (1.0 - t) / 2.0 * (1.0 + t) / 3.0;
+            (0..n)
+                .map(|k| {
+                    let (p0, p1, p2, p3) = (at(k - w - 2), at(k - w - 1), at(k - w), at(k - w + 1));
+                    let line = p1 + t * (p2 - p1);
+                    if curvature == 0.0 || t == 1.0 {
+                        line
+                    } else {
+                        line - c0 * (p0 - 2.0 * p1 + p2) - c1 * (p1 - 2.0 * p2 + p3)
+                    }
+                })
+                .collect()
+        };
+        for n in [1usize, 2, 3, 4, 5, 9, 40] {
+            let u: Vec<f64> = (0..n).map(|k| ((k * k) as f64 * 0.37).sin()).collect();
+            let nf = n as f64;
+            for s in [
+                -nf - 7.3,
+                -nf,
+                -nf + 1.5,
+                -3.25,
+                -1.0,
+                -0.5,
+                0.0,
+                0.4,
+                1.0,
+                2.75,
+                nf - 1.5,
+                nf,
+                nf + 4.6,
+            ] {
+                for c in [0.0, 0.7, 1.0] {
+                    assert_eq!(shift(&u, s, c), reference(&u, s, c), "n {n} s {s} c {c}");
+                }
+            }
+        }
     }
 
     #[test]
@@ -2769,6 +3019,13 @@ pub(crate) mod tests {
             (vec![(Effect::OffsetDrift, Form::Spline)], Placement::After),
             (
                 vec![
+                    (Effect::OffsetDrift, Form::Spline),
+                    (Effect::Creep, Form::KelvinVoigt),
+                ],
+                Placement::After,
+            ),
+            (
+                vec![
                     (Effect::OffsetDrift, Form::Polynomial),
                     (Effect::Creep, Form::KelvinVoigt),
                 ],
@@ -2781,7 +3038,17 @@ pub(crate) mod tests {
             ),
         ] {
             let st = Structure::with_forms(&parts, Some(1.0), ctx, placement);
-            let theta: Vec<f64> = st.specs().iter().map(|s| s.neutral).collect();
+            // Creep with gain (its states free inside their bounds), two time constants a
+            // decade apart on a spline drift: near-collinear decays and hats.
+            let theta = theta_with(
+                &st,
+                &[
+                    ("creep_g", 0.05),
+                    ("creep_log10_tau_s", 0.3f64.log10()),
+                    ("creep_g2", 0.03),
+                    ("creep_log10_tau2_s", 3f64.log10()),
+                ],
+            );
             let y: Vec<f64> = u
                 .iter()
                 .enumerate()
@@ -2812,6 +3079,56 @@ pub(crate) mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn normal_equations_agree_with_gram_schmidt_and_yield_to_it_on_near_dependent_columns() {
+        let n = 4000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 / n as f64).collect();
+        let decay = |tau: f64| t.iter().map(|x| (-x / tau).exp()).collect::<Vec<f64>>();
+        let y: Vec<f64> = t
+            .iter()
+            .enumerate()
+            .map(|(k, x)| (7.0 * x).sin() + 0.3 * (-x / 0.2).exp() + 0.01 * ((k * 37) % 11) as f64)
+            .collect();
+        let sine: Vec<f64> = t.iter().map(|x| (7.0 * x).sin()).collect();
+        let a = decay(0.2);
+        let cost = |cols: &[Vec<f64>], b: &[f64]| -> f64 {
+            (0..n)
+                .map(|k| {
+                    let m: f64 = cols.iter().zip(b).map(|(c, x)| c[k] * x).sum();
+                    0.5 * (y[k] - m).powi(2)
+                })
+                .sum()
+        };
+        // Well conditioned: the normal equations, the same fit.
+        let good = vec![sine.clone(), a.clone(), decay(0.02), vec![0.0; n]];
+        for bounds in [vec![], vec![(1, 0.1)]] {
+            let gs = bounded_least_squares(&good, &y, &bounds);
+            let ne = gram_least_squares(&good, &y, &bounds);
+            let (c_gs, c_ne) = (cost(&good, &gs), cost(&good, &ne));
+            assert!((c_ne / c_gs - 1.0).abs() < 1e-12, "{c_ne} vs {c_gs}");
+            for (x, z) in ne.iter().zip(&gs) {
+                assert!((x - z).abs() <= 1e-9 * (1.0 + z.abs()), "{x} vs {z}");
+            }
+            assert!(bounds.iter().all(|&(j, lim)| ne[j].abs() <= lim));
+            assert_eq!(ne[3], 0.0);
+        }
+        // A column near another (and one exactly dependent): Gram-Schmidt decides, which
+        // gives the dependent one 0 rather than a pair of large opposite coefficients.
+        let bad = vec![
+            sine,
+            a.clone(),
+            decay(0.2001),
+            a.iter().map(|x| 2.0 * x).collect(),
+        ];
+        for bounds in [vec![], vec![(1, 0.1)]] {
+            assert_eq!(
+                gram_least_squares(&bad, &y, &bounds),
+                bounded_least_squares(&bad, &y, &bounds)
+            );
+        }
+        assert_eq!(gram_least_squares(&bad, &y, &[])[3], 0.0);
     }
 
     #[test]
