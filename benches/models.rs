@@ -5,12 +5,21 @@
 //! models`).
 //!
 //! Samples/s = individuals × samples / time (criterion's "elem/s").
+//!
+//! And one evaluation of a diagnosis candidate on a 40,000-sample record (the Bouc-Wen
+//! chain plus its linear least squares), projected (as `diagnose` runs it) against the
+//! direct Gram-Schmidt solve on all columns (the reference), per structure.
+
+// As in the `optbench` binary.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 use criterion::{BenchmarkId, Criterion, Throughput};
 use optbench::physics::bouc_wen;
 use optbench::physics::bouc_wen_fast::{self, FastInput};
 use optbench::physics::rbf::{self, Mode, Narx, RbfNet, Regressors};
 use optbench::physics::rbf_fast::RbfBatch;
+use optbench::physics::structure::{Context, Effect, Form, Structure};
 use optbench::speed::fixtures;
 use rayon::prelude::*;
 use std::hint::black_box;
@@ -107,6 +116,74 @@ fn rbf_costs(c: &mut Criterion) {
     g.finish();
 }
 
+/// The diagnosis structures timed by [`diagnose_costs`]: name and (effect, form) parts.
+fn diagnose_structures() -> Vec<(&'static str, Vec<(Effect, Form)>)> {
+    vec![
+        ("plain", vec![]),
+        ("creep", vec![(Effect::Creep, Form::KelvinVoigt)]),
+        (
+            "creep+spline-drift",
+            vec![
+                (Effect::Creep, Form::KelvinVoigt),
+                (Effect::OffsetDrift, Form::Spline),
+            ],
+        ),
+    ]
+}
+
+const DIAG_N: usize = 40_000;
+
+fn diagnose_costs(c: &mut Criterion) {
+    let (u, y) = fixtures::record(DIAG_N);
+    let ctx = Context::from_training(&u, 1e-3);
+    let mut g = c.benchmark_group("diagnose_eval_40k");
+    g.throughput(Throughput::Elements(DIAG_N as u64));
+    g.sample_size(20);
+    for (name, parts) in diagnose_structures() {
+        let mut st = Structure::new(&[], Some(1.0), ctx);
+        for (e, f) in parts {
+            st = st.extended_with(e, f);
+        }
+        // Neutral shape with both creep elements active (their states inside the bounds).
+        let theta: Vec<f64> = st
+            .specs()
+            .iter()
+            .map(|s| match s.name {
+                "creep_g" => 0.05,
+                "creep_g2" => 0.03,
+                _ => s.neutral,
+            })
+            .collect();
+        let proj = st.projection(&y);
+        g.bench_function(BenchmarkId::new("projected", name), |b| {
+            b.iter(|| black_box(st.fit_linear_projected(&theta, &u, &y, &proj).cost))
+        });
+        g.bench_function(BenchmarkId::new("reference", name), |b| {
+            b.iter(|| black_box(st.fit_linear_reference(&theta, &u, &y).cost))
+        });
+    }
+    g.finish();
+}
+
+fn print_diagnose_ratios() {
+    let group = "diagnose_eval_40k";
+    println!("\nOne diagnosis evaluation, {DIAG_N} samples (this run):");
+    let plain = mean_ns(group, "projected/plain");
+    for (name, _) in diagnose_structures() {
+        let p = mean_ns(group, &format!("projected/{name}"));
+        let r = mean_ns(group, &format!("reference/{name}"));
+        if let (Some(p), Some(r), Some(plain)) = (p, r, plain) {
+            println!(
+                "  {name:<19} projected {:>6.2} ms, reference {:>6.2} ms: reference / projected = {:.2}x, projected / plain = {:.2}x",
+                p * 1e-6,
+                r * 1e-6,
+                r / p,
+                p / plain
+            );
+        }
+    }
+}
+
 /// Mean time of a finished benchmark from criterion's estimates, in nanoseconds.
 fn mean_ns(group: &str, id: &str) -> Option<f64> {
     let target = std::env::var("CARGO_TARGET_DIR").unwrap_or_else(|_| "target".into());
@@ -182,7 +259,9 @@ fn main() {
     let mut c = Criterion::default().configure_from_args();
     bouc_wen_costs(&mut c);
     rbf_costs(&mut c);
+    diagnose_costs(&mut c);
     c.final_summary();
     print_ratios();
     print_rbf_ratios();
+    print_diagnose_ratios();
 }
