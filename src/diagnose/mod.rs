@@ -638,6 +638,16 @@ fn fit_proposal(
     evaluate(f, d, opts)
 }
 
+/// Whether a drift of each record is taken before creep: creep's `[training ΔBIC,
+/// validation criterion]` against the drift's. When the drift explains the training record
+/// about as well (within `margin`), creep's initial-state decays may be all it has, and it
+/// must pass on top of the drift by what the input drives; not when creep, carried over to
+/// the validation record, predicts it better by more than `margin`: that is what the input
+/// drives, already shown.
+fn drift_first(creep: [f64; 2], drift: [f64; 2], margin: f64) -> bool {
+    drift[0] <= creep[0] + margin && drift[1] <= creep[1] + margin
+}
+
 /// The gate of one candidate against its parent, and the evidence line.
 struct Verdict {
     delta_bic: f64,
@@ -1092,7 +1102,11 @@ pub fn diagnose_with_tests(
         let train_delta = |i: usize| singles.iter().find(|x| x.0 == i).map_or(0.0, |x| x.1);
         if let (Some(b), Some(r)) = (best, best_per_record)
             && pool[b.0].effects().contains(&Effect::Creep)
-            && train_delta(r.0) <= train_delta(b.0) + opts.bic_margin
+            && drift_first(
+                [train_delta(b.0), tried[b.0].validate_ic],
+                [train_delta(r.0), tried[r.0].validate_ic],
+                opts.bic_margin,
+            )
         {
             candidates[b.1].notes.push(format!(
                 "transfer: a drift of each record ({}) passes too: taken first, so creep must add what the input drives",
@@ -1421,6 +1435,24 @@ mod tests {
 
     /// A named effect's other forms are offered in later rounds (not dynamics, which has
     /// its own upgrade from one mode to two).
+    #[test]
+    fn a_drift_is_taken_before_creep_only_if_it_predicts_as_well() {
+        // Case 61 of seed 20261128: equal training ΔBIC, creep ahead on validation by 2,650.
+        assert!(!drift_first(
+            [-15047.9, -513701.4],
+            [-15048.1, -511050.7],
+            10.0
+        ));
+        // The same training ΔBIC and the same validation: the drift goes first.
+        assert!(drift_first(
+            [-15047.9, -513701.4],
+            [-15048.1, -513695.0],
+            10.0
+        ));
+        // Creep far ahead on training: creep, whatever the validation says.
+        assert!(!drift_first([-20000.0, -5e5], [-15000.0, -6e5], 10.0));
+    }
+
     #[test]
     fn the_pool_offers_a_named_effects_other_forms() {
         let u: Vec<f64> = (0..400).map(|k| (k as f64 * 0.05).sin()).collect();
