@@ -1872,19 +1872,20 @@ impl Projection {
     /// round-off left of the first); returns `Hᵀ v` of the `v` given.
     fn project(&self, v: &mut [f64]) -> Vec<f64> {
         let first = self.ht(v);
-        let mut c = first.clone();
-        for pass in 0..2 {
-            if pass > 0 {
-                c = self.ht(v);
-            }
-            let w = self.gram_solve(&c);
-            for ((lo, col), wi) in self.fixed.iter().zip(&w) {
-                if *wi != 0.0 {
-                    v[*lo..].iter_mut().zip(col).for_each(|(x, a)| *x -= wi * a);
-                }
+        self.subtract(v, &first);
+        let again = self.ht(v);
+        self.subtract(v, &again);
+        first
+    }
+
+    /// `v -= H (HᵀH)⁻¹ c`, each fixed column over its support.
+    fn subtract(&self, v: &mut [f64], c: &[f64]) {
+        let w = self.gram_solve(c);
+        for ((lo, col), wi) in self.fixed.iter().zip(&w) {
+            if *wi != 0.0 {
+                v[*lo..].iter_mut().zip(col).for_each(|(x, a)| *x -= wi * a);
             }
         }
-        first
     }
 
     /// Coefficients (in coefficient order) and `Σ e²/2` for the shape-dependent columns
@@ -1955,26 +1956,12 @@ pub fn least_squares(cols: &[Vec<f64>], y: &[f64]) -> Vec<f64> {
 /// coefficient beyond its bound is held there and the others refitted, until none is
 /// beyond (at most once per bounded coefficient).
 pub fn bounded_least_squares(cols: &[Vec<f64>], y: &[f64], bounds: &[(usize, f64)]) -> Vec<f64> {
-    let mut b = least_squares(cols, y);
-    if bounds.is_empty() {
-        return b;
-    }
-    let mut held: Vec<(usize, f64)> = Vec::new();
-    for _ in 0..bounds.len() {
-        let beyond: Vec<(usize, f64)> = bounds
-            .iter()
-            .filter(|(j, _)| !held.iter().any(|h| h.0 == *j))
-            .filter_map(|&(j, lim)| {
-                let x = *b.get(j)?;
-                (x.abs() > lim).then(|| (j, lim.copysign(x)))
-            })
-            .collect();
-        if beyond.is_empty() {
-            break;
+    let solve = |held: &[(usize, f64)]| {
+        if held.is_empty() {
+            return Some(least_squares(cols, y));
         }
-        held.extend(beyond);
         let mut target = y.to_vec();
-        for &(j, x) in &held {
+        for &(j, x) in held {
             target
                 .iter_mut()
                 .zip(&cols[j])
@@ -1991,12 +1978,41 @@ pub fn bounded_least_squares(cols: &[Vec<f64>], y: &[f64], bounds: &[(usize, f64
                 }
             })
             .collect();
-        b = least_squares(&free, &target);
-        for &(j, x) in &held {
+        let mut b = least_squares(&free, &target);
+        for &(j, x) in held {
             b[j] = x;
         }
+        Some(b)
+    };
+    active_set(bounds, solve).expect("Gram-Schmidt always solves")
+}
+
+/// The active-set loop of a bounded least squares: `solve(held)` (coefficients with
+/// `held` fixed, None if it cannot) from none held; a coefficient beyond its bound is
+/// then held there and the rest solved again, until none is beyond (at most once per
+/// bounded coefficient). None as soon as a solve is None.
+fn active_set(
+    bounds: &[(usize, f64)],
+    solve: impl Fn(&[(usize, f64)]) -> Option<Vec<f64>>,
+) -> Option<Vec<f64>> {
+    let mut b = solve(&[])?;
+    let mut held: Vec<(usize, f64)> = Vec::new();
+    for _ in 0..bounds.len() {
+        let beyond: Vec<(usize, f64)> = bounds
+            .iter()
+            .filter(|(j, _)| !held.iter().any(|h| h.0 == *j))
+            .filter_map(|&(j, lim)| {
+                let x = *b.get(j)?;
+                (x.abs() > lim).then(|| (j, lim.copysign(x)))
+            })
+            .collect();
+        if beyond.is_empty() {
+            break;
+        }
+        held.extend(beyond);
+        b = solve(&held)?;
     }
-    b
+    Some(b)
 }
 
 /// [`bounded_least_squares`] by the normal equations of the columns scaled to unit norm:
@@ -2092,29 +2108,7 @@ fn gram_least_squares(cols: &[Vec<f64>], y: &[f64], bounds: &[(usize, f64)]) -> 
         }
         b.iter().all(|x| x.is_finite()).then_some(b)
     };
-    let Some(mut b) = solve(&[]) else {
-        return bounded_least_squares(cols, y, bounds);
-    };
-    let mut held: Vec<(usize, f64)> = Vec::new();
-    for _ in 0..bounds.len() {
-        let beyond: Vec<(usize, f64)> = bounds
-            .iter()
-            .filter(|(j, _)| !held.iter().any(|h| h.0 == *j))
-            .filter_map(|&(j, lim)| {
-                let x = *b.get(j)?;
-                (x.abs() > lim).then(|| (j, lim.copysign(x)))
-            })
-            .collect();
-        if beyond.is_empty() {
-            break;
-        }
-        held.extend(beyond);
-        let Some(next) = solve(&held) else {
-            return bounded_least_squares(cols, y, bounds);
-        };
-        b = next;
-    }
-    b
+    active_set(bounds, solve).unwrap_or_else(|| bounded_least_squares(cols, y, bounds))
 }
 
 /// Max minus min of a record (0 if empty or not finite).
