@@ -1438,16 +1438,15 @@ mod tests {
                 out + sigma * standard_normal(&mut rng)
             })
             .collect();
-        let v: Vec<f64> = u.iter().rev().copied().collect();
+        let plain = Structure::new(&[], Some(1.0), Context::from_training(&u, dt));
         let data = Data {
-            ut: Arc::new(u.clone()),
-            yt: Arc::new(y.clone()),
+            uv: u.iter().rev().copied().collect(),
             yv: y.iter().rev().copied().collect(),
-            uv: v,
+            ut: Arc::new(u),
+            yt: Arc::new(y),
             periodic: false,
         };
         let opts = Options::default();
-        let plain = Structure::new(&[], Some(1.0), Context::from_training(&u, dt));
         let parent = fit::fit(
             &plain,
             &data.ut,
@@ -1509,8 +1508,8 @@ mod tests {
         );
     }
 
-    /// A named effect's other forms are offered in later rounds (not dynamics, which has
-    /// its own upgrade from one mode to two).
+    /// Creep yields to a drift of each record only when the drift also predicts the
+    /// validation record about as well.
     #[test]
     fn a_drift_is_taken_before_creep_only_if_it_predicts_as_well() {
         // Case 61 of seed 20261128: equal training ΔBIC, creep ahead on validation by 2,650.
@@ -1529,6 +1528,8 @@ mod tests {
         assert!(!drift_first([-20000.0, -5e5], [-15000.0, -6e5], 10.0));
     }
 
+    /// A named effect's other forms are offered in later rounds (not dynamics, which has
+    /// its own upgrade from one mode to two).
     #[test]
     fn the_pool_offers_a_named_effects_other_forms() {
         let u: Vec<f64> = (0..400).map(|k| (k as f64 * 0.05).sin()).collect();

@@ -318,6 +318,18 @@ pub struct LinearFit {
     pub status: Status,
 }
 
+impl LinearFit {
+    /// A shape unstable from sample `at` of `len`: the finite penalty `cap (2 - at/len)`,
+    /// above every stable cost and higher the earlier it fails.
+    fn unstable(ncoef: usize, cap: f64, at: usize, len: usize) -> LinearFit {
+        LinearFit {
+            coef: vec![0.0; ncoef],
+            cost: cap * (2.0 - at as f64 / len.max(1) as f64),
+            status: Status::Unstable { at },
+        }
+    }
+}
+
 /// Shape parameters decoded from a vector.
 #[derive(Clone, Copy, Debug)]
 struct Shape {
@@ -1436,11 +1448,7 @@ impl Structure {
         let cap = cost_cap(y);
         let (cols, status) = self.columns(theta, u);
         if let Status::Unstable { at } = status {
-            return LinearFit {
-                coef: vec![0.0; cols.len()],
-                cost: cap * (2.0 - at as f64 / len.max(1) as f64),
-                status,
-            };
+            return LinearFit::unstable(cols.len(), cap, at, len);
         }
         let coef = bounded_least_squares(&cols, y, &self.state_bounds(theta, span(y)));
         let cost: f64 = (0..len)
@@ -1478,11 +1486,7 @@ impl Structure {
         let (varying, status) = self.varying_columns(theta, u);
         let ncoef = varying.len() + proj.fixed_at.len();
         if let Status::Unstable { at } = status {
-            return LinearFit {
-                coef: vec![0.0; ncoef],
-                cost: cap * (2.0 - at as f64 / len.max(1) as f64),
-                status,
-            };
+            return LinearFit::unstable(ncoef, cap, at, len);
         }
         let fixed_at = &proj.fixed_at;
         let varying_at = |j: usize| j - fixed_at.iter().filter(|&&f| f < j).count();
