@@ -654,6 +654,98 @@ fn drift_first(creep: [f64; 2], drift: [f64; 2], margin: f64) -> bool {
     drift[0] <= creep[0] + margin && drift[1] <= creep[1] + margin
 }
 
+/// Creep and a drift of each record stand in for each other on one record (a slow creep
+/// is a drift the input drives; a settling drift is creep's initial-state decay), and
+/// whichever was named first shapes every later round: a drift soaks up the mismatch of a
+/// creep named after it, a creep named for a drift stays beside the rate-dependence that
+/// followed. The pair `(named, partner)`: drop `named` and search `partner` (every form,
+/// or its own form again when the model has it) on the rest, polished.
+const EXCHANGES: [(Effect, Effect); 2] = [
+    (Effect::OffsetDrift, Effect::Creep),
+    (Effect::Creep, Effect::OffsetDrift),
+];
+
+/// The exchanges of [`EXCHANGES`] open to `current` (its effects named in `named`): per
+/// exchange the effect dropped, the proposal and its fit on the rest; also the evaluations
+/// the rests took.
+fn exchanges(
+    current: &Fitted,
+    named: &[String],
+    d: &Data,
+    opts: &Options,
+    round: usize,
+) -> (Vec<(Effect, Proposal, Evaluated)>, u64) {
+    let st = &current.structure;
+    let open: Vec<(Effect, Effect)> = EXCHANGES
+        .iter()
+        .copied()
+        .filter(|(e, _)| st.has(*e) && named.iter().any(|n| n == e.name()))
+        .collect();
+    // The rest starts where the current model has it: the partner's search polishes every
+    // coordinate afterwards, so a polish of the rest alone (thousands of sequential
+    // evaluations on a long record) would only be repeated.
+    let rests: Vec<Fitted> = open
+        .iter()
+        .map(|&(e, _)| {
+            let smaller = st.without(e);
+            let theta = st.embed(&current.theta, &smaller);
+            let linear = smaller.fit_linear(&theta, &d.ut, &d.yt);
+            Fitted {
+                structure: smaller,
+                theta,
+                linear,
+                evaluations: 1,
+            }
+        })
+        .collect();
+    let used = rests.len() as u64;
+    let jobs: Vec<(usize, Proposal)> = open
+        .iter()
+        .enumerate()
+        .flat_map(|(i, &(_, partner))| {
+            let forms: Vec<Form> = match st.form(partner) {
+                Some(f) => vec![f],
+                None => partner.forms().to_vec(),
+            };
+            forms.into_iter().map(move |f| {
+                (
+                    i,
+                    Proposal {
+                        parts: vec![(partner, f)],
+                        placement: st.placement(),
+                    },
+                )
+            })
+        })
+        .collect();
+    let tried = jobs
+        .par_iter()
+        .map(|(i, p)| {
+            let c = fit_proposal(&rests[*i], p, &[], d, opts, 300 + round);
+            (open[*i].0, p.clone(), c)
+        })
+        .collect();
+    (tried, used)
+}
+
+/// An exchanged model against the one it would replace: `[training ΔBIC, Δ validation
+/// criterion, their sum]`, and whether it is taken: all the data support it better by the
+/// margin, neither record worse by more than the margin, and its validation RMSE inside
+/// the current model's band (not above its top).
+fn exchange_gate(
+    c: &Evaluated,
+    current: &Evaluated,
+    band: [f64; 2],
+    nt: usize,
+    margin: f64,
+) -> ([f64; 3], bool) {
+    let d_bic = bic(&c.fitted, nt) - bic(&current.fitted, nt);
+    let d_vic = c.validate_ic - current.validate_ic;
+    let d_all = d_bic + d_vic;
+    let passed = d_all < -margin && d_bic < margin && d_vic < margin && c.validate_rmse <= band[1];
+    ([d_bic, d_vic, d_all], passed)
+}
+
 /// The gate of one candidate against its parent, and the evidence line.
 struct Verdict {
     delta_bic: f64,
@@ -980,90 +1072,358 @@ pub fn diagnose_with_tests(
     let threshold = boot.last().copied().unwrap_or(1.0).max(1.0);
     let mut round = 0;
     let mut search_stop = format!("{} rounds, the most allowed", opts.max_rounds);
-    while round < opts.max_rounds {
-        // Nothing the battery can tell from noise is left (at least one of the baseline's
-        // bootstrap refits scores as high): no name can be earned, the search ends.
-        if current_summary.p_value > 0.05 {
-            let at = match round {
-                0 => "at the baseline".to_string(),
-                r => format!("after round {r}"),
-            };
-            search_stop = format!(
-                "{at}: the residual battery finds no structure (bootstrap p {})",
-                crate::report::table::sig(current_summary.p_value, 2)
-            );
-            break;
-        }
-        round += 1;
-        let parent = current.fitted.structure.clone();
-        let mut pool = candidate_pool(&parent, opts);
-        if pool.is_empty() {
-            search_stop = format!("after round {}: no effect left to try", round - 1);
-            break;
-        }
-        // A new placement (the hysteresis inside the mechanical feedback) is searched
-        // afresh on a fine integration grid, the costliest candidate by far: it is asked
-        // only when a mode after the hysteresis is the best candidate that passes the gate
-        // (so a mode is about to be named) and still leaves more than 1.5x the noise on
-        // validation (so where it sits may matter: a restoring force fitted as a mode
-        // after the hysteresis leaves tens of times the noise).
-        let moves = |p: &Proposal| p.placement != parent.placement();
-        let (placed, mut rest): (Vec<Proposal>, Vec<Proposal>) =
-            pool.drain(..).partition(|p| moves(p));
-        let mut tried: Vec<Evaluated> = rest
-            .par_iter()
-            .map(|p| fit_proposal(&current.fitted, p, &[], &d, opts, round))
-            .collect();
-        let band = current_summary.validate_band;
-        let gate = Gate {
-            band,
-            margin: opts.bic_margin,
-            min_explained: MIN_EXPLAINED,
-            nt,
-            noise,
-            unit: &unit,
-        };
-        let mut verdicts: Vec<Verdict> = tried.iter().map(|c| judge(c, &current, &gate)).collect();
-        let timing_passes = rest
-            .iter()
-            .zip(&verdicts)
-            .any(|(p, v)| v.passed && p.is_timing());
-        let dynamics_helps = rest
-            .iter()
-            .zip(&tried)
-            .zip(&verdicts)
-            .filter(|(_, v)| v.passed)
-            .min_by(|((_, a), va), ((_, b), vb)| {
-                (va.delta_bic + a.validate_ic).total_cmp(&(vb.delta_bic + b.validate_ic))
-            })
-            .is_some_and(|((p, c), _)| {
-                p.effects().contains(&Effect::Dynamics)
-                    && c.validate_rmse > FEEDBACK_WORTH * noise
-                    && !(timing_passes && resonant(&c.fitted, dt) == Some(false))
-            });
-        if dynamics_helps {
-            let moved: Vec<Evaluated> = placed
+    let mut exchanged = false;
+    let mut exchange_note = String::new();
+    loop {
+        while round < opts.max_rounds {
+            // Nothing the battery can tell from noise is left (at least one of the baseline's
+            // bootstrap refits scores as high): no name can be earned, the search ends.
+            if current_summary.p_value > 0.05 {
+                let at = match round {
+                    0 => "at the baseline".to_string(),
+                    r => format!("after round {r}"),
+                };
+                search_stop = format!(
+                    "{at}: the residual battery finds no structure (bootstrap p {})",
+                    crate::report::table::sig(current_summary.p_value, 2)
+                );
+                break;
+            }
+            round += 1;
+            let parent = current.fitted.structure.clone();
+            let mut pool = candidate_pool(&parent, opts);
+            if pool.is_empty() {
+                search_stop = format!("after round {}: no effect left to try", round - 1);
+                break;
+            }
+            // A new placement (the hysteresis inside the mechanical feedback) is searched
+            // afresh on a fine integration grid, the costliest candidate by far: it is asked
+            // only when a mode after the hysteresis is the best candidate that passes the gate
+            // (so a mode is about to be named) and still leaves more than 1.5x the noise on
+            // validation (so where it sits may matter: a restoring force fitted as a mode
+            // after the hysteresis leaves tens of times the noise).
+            let moves = |p: &Proposal| p.placement != parent.placement();
+            let (placed, mut rest): (Vec<Proposal>, Vec<Proposal>) =
+                pool.drain(..).partition(|p| moves(p));
+            let mut tried: Vec<Evaluated> = rest
                 .par_iter()
                 .map(|p| fit_proposal(&current.fitted, p, &[], &d, opts, round))
                 .collect();
-            verdicts.extend(moved.iter().map(|c| judge(c, &current, &gate)));
-            tried.extend(moved);
-            rest.extend(placed);
+            let band = current_summary.validate_band;
+            let gate = Gate {
+                band,
+                margin: opts.bic_margin,
+                min_explained: MIN_EXPLAINED,
+                nt,
+                noise,
+                unit: &unit,
+            };
+            let mut verdicts: Vec<Verdict> =
+                tried.iter().map(|c| judge(c, &current, &gate)).collect();
+            let timing_passes = rest
+                .iter()
+                .zip(&verdicts)
+                .any(|(p, v)| v.passed && p.is_timing());
+            let dynamics_helps = rest
+                .iter()
+                .zip(&tried)
+                .zip(&verdicts)
+                .filter(|(_, v)| v.passed)
+                .min_by(|((_, a), va), ((_, b), vb)| {
+                    (va.delta_bic + a.validate_ic).total_cmp(&(vb.delta_bic + b.validate_ic))
+                })
+                .is_some_and(|((p, c), _)| {
+                    p.effects().contains(&Effect::Dynamics)
+                        && c.validate_rmse > FEEDBACK_WORTH * noise
+                        && !(timing_passes && resonant(&c.fitted, dt) == Some(false))
+                });
+            if dynamics_helps {
+                let moved: Vec<Evaluated> = placed
+                    .par_iter()
+                    .map(|p| fit_proposal(&current.fitted, p, &[], &d, opts, round))
+                    .collect();
+                verdicts.extend(moved.iter().map(|c| judge(c, &current, &gate)));
+                tried.extend(moved);
+                rest.extend(placed);
+            }
+            let pool = rest;
+            let mut record = |p: &Proposal, c: &Evaluated, v: &Verdict, candidates: &mut Vec<_>| {
+                evaluations += c.fitted.evaluations;
+                candidates.push(Candidate {
+                    name: p.name(),
+                    form: p.form(),
+                    transfer: transfer(p),
+                    placement: p
+                        .effects()
+                        .contains(&Effect::Dynamics)
+                        .then(|| p.placement.name().to_string()),
+                    round,
+                    parent: parent.label(),
+                    delta_bic: v.delta_bic,
+                    train_rmse: c.fitted.rmse(nt),
+                    validate_rmse: c.validate_rmse,
+                    validate_ic: c.validate_ic,
+                    score: c.score,
+                    accepted: false,
+                    dropped: false,
+                    params: named(&c.fitted),
+                    evidence: v.evidence.clone(),
+                    notes: Vec::new(),
+                    evaluations: c.fitted.evaluations,
+                });
+                candidates.len() - 1
+            };
+            // Among the candidates that pass the gate, the one all the data support best: its
+            // training BIC plus its information criterion on the validation record it was not
+            // fitted to (training BIC alone favours flexible forms that do not predict; the
+            // validation record alone cannot tell forms that predict alike).
+            let mut best: Option<(usize, usize, f64)> = None;
+            let mut best_per_record: Option<(usize, usize, f64)> = None;
+            let mut best_timing: Option<(usize, usize, f64)> = None;
+            let mut singles: Vec<(usize, f64)> = Vec::new();
+            for (i, ((p, c), v)) in pool.iter().zip(&tried).zip(&verdicts).enumerate() {
+                let at = record(p, c, v, &mut candidates);
+                let evidence = v.delta_bic + c.validate_ic;
+                if v.passed && best.is_none_or(|b| evidence < b.2) {
+                    best = Some((i, at, evidence));
+                }
+                if v.passed && p.is_timing() && best_timing.is_none_or(|b| evidence < b.2) {
+                    best_timing = Some((i, at, evidence));
+                }
+                let per_record = p.parts.iter().all(|x| x.0.per_record());
+                if v.passed && per_record && best_per_record.is_none_or(|b| evidence < b.2) {
+                    best_per_record = Some((i, at, evidence));
+                }
+                singles.push((i, v.delta_bic));
+            }
+            // Transfer: creep's initial-state decays are a drift of each record; when a drift
+            // of the record's own explains the training record about as well (ΔBIC within the
+            // margin of creep's), the drift is taken first and creep must then pass on top of
+            // it by what the input drives (carried to the validation record with the same
+            // parameters); the backward step drops the drift if creep turns out to explain it.
+            let train_delta = |i: usize| singles.iter().find(|x| x.0 == i).map_or(0.0, |x| x.1);
+            if let (Some(b), Some(r)) = (best, best_per_record)
+                && pool[b.0].effects().contains(&Effect::Creep)
+                && drift_first(
+                    [train_delta(b.0), tried[b.0].validate_ic],
+                    [train_delta(r.0), tried[r.0].validate_ic],
+                    opts.bic_margin,
+                )
+            {
+                candidates[b.1].notes.push(format!(
+                "transfer: a drift of each record ({}) passes too: taken first, so creep must add what the input drives",
+                pool[r.0].form()
+            ));
+                best = Some(r);
+            }
+            // A lag in disguise yields to input timing that passes too: a mode with no
+            // resonance is a low-pass; creep pinned at its fastest time constant is a lag
+            // faster than any creep (the backward step drops the timing if creep, named
+            // later, explains it).
+            if let (Some(b), Some(t)) = (best, best_timing) {
+                let fitted = &tried[b.0].fitted;
+                let why = if !parent.has(Effect::Dynamics) && resonant(fitted, dt) == Some(false) {
+                    Some(format!(
+                        "no resonance (no mode peaks 2x below {RESOLVED_FRACTION} of the sampling rate): a low-pass; input timing ({}) passes too and is named instead",
+                        pool[t.0].name()
+                    ))
+                } else if pool[b.0].effects() == [Effect::Creep] && creep_pinned_fast(fitted) {
+                    Some(format!(
+                        "its fast element sits at the fastest creep time constant (ten samples): a lag; input timing ({}) passes too and is named first",
+                        pool[t.0].name()
+                    ))
+                } else {
+                    None
+                };
+                if let Some(why) = why {
+                    candidates[b.1].notes.push(why);
+                    best = Some(t);
+                }
+            }
+            let mut chosen: Option<(Proposal, Evaluated, usize)> = best.map(|(i, at, _)| {
+                let c = tried.get(i).expect("index of a candidate");
+                (pool[i].clone(), c.clone(), at)
+            });
+            // No single effect passes, but the residual is structured: two effects concealed
+            // together may each be too small alone. Pairs of the best singles (one form per
+            // effect), started at the singles' fits.
+            if chosen.is_none() && current_summary.p_value <= 0.05 {
+                singles.sort_by(|a, b| a.1.total_cmp(&b.1));
+                let mut top: Vec<usize> = Vec::new();
+                for &(i, delta) in &singles {
+                    let e = pool[i].parts[0].0;
+                    let upgrade = parent.has(e);
+                    if delta < 0.0
+                        && !upgrade
+                        && pool[i].placement == parent.placement()
+                        && !top.iter().any(|&j| pool[j].parts[0].0 == e)
+                    {
+                        top.push(i);
+                    }
+                    if top.len() == opts.pair_pool {
+                        break;
+                    }
+                }
+                // Not a delay with an input lag: both only time the input, and together they
+                // are a more flexible timing that the data can rarely tell apart.
+                let pairs: Vec<(usize, usize)> = (0..top.len())
+                    .flat_map(|a| (a + 1..top.len()).map(move |b| (a, b)))
+                    .map(|(a, b)| (top[a], top[b]))
+                    .filter(|&(a, b)| !(pool[a].is_timing() && pool[b].is_timing()))
+                    .collect();
+                let proposals: Vec<Proposal> = pairs
+                    .iter()
+                    .map(|&(a, b)| Proposal {
+                        parts: vec![pool[a].parts[0], pool[b].parts[0]],
+                        placement: parent.placement(),
+                    })
+                    .collect();
+                let fitted: Vec<Evaluated> = proposals
+                    .par_iter()
+                    .zip(&pairs)
+                    .map(|(p, &(a, b))| {
+                        fit_proposal(
+                            &current.fitted,
+                            p,
+                            &[&tried[a].fitted, &tried[b].fitted],
+                            &d,
+                            opts,
+                            round,
+                        )
+                    })
+                    .collect();
+                let mut best: Option<(usize, usize, f64)> = None;
+                for (i, (p, c)) in proposals.iter().zip(&fitted).enumerate() {
+                    let v = judge(
+                        c,
+                        &current,
+                        // Each effect of a pair earns what a single must.
+                        &Gate {
+                            margin: 2.0 * opts.bic_margin,
+                            min_explained: 2.0 * MIN_EXPLAINED,
+                            ..gate
+                        },
+                    );
+                    let at = record(p, c, &v, &mut candidates);
+                    let evidence = v.delta_bic + c.validate_ic;
+                    if v.passed && best.is_none_or(|b| evidence < b.2) {
+                        best = Some((i, at, evidence));
+                    }
+                }
+                chosen = best.map(|(i, at, _)| (proposals[i].clone(), fitted[i].clone(), at));
+            }
+            let Some((p, c, at)) = chosen else {
+                search_stop = format!("after round {round}: no candidate passes the gate");
+                break;
+            };
+            candidates[at].accepted = true;
+            for e in p.effects() {
+                if !parent.has(e) {
+                    left_out.push(e.name().to_string());
+                }
+            }
+            // The next round's parent, polished to convergence: otherwise every candidate
+            // of the next round gains from the parent's own unfinished polish, and the first
+            // to pass is a passenger.
+            let polished = repolish(&c.fitted, &d, opts, 200 + round as u64);
+            evaluations += polished.fitted.evaluations;
+            current = if polished.fitted.linear.cost <= c.fitted.linear.cost {
+                polished
+            } else {
+                c
+            };
+            current_summary = summary(&current, &d, &boot, opts.seed);
+            // Backward, after every acceptance: an accepted effect the model no longer needs
+            // (removing it leaves the validation RMSE inside the model's band) is dropped, the
+            // least needed first, and the search goes on from the smaller model (an effect that
+            // stood in for two, e.g. a fast creep for an input lag and its initial state for a
+            // drift, leaves room for the second once the first is named).
+            while left_out.len() >= 2 {
+                let st = current.fitted.structure.clone();
+                let removable: Vec<Effect> = st
+                    .effects()
+                    .iter()
+                    .copied()
+                    .filter(|e| left_out.iter().any(|n| n == e.name()))
+                    .filter(|e| !(*e == Effect::Dynamics && st.placement() == Placement::Feedback))
+                    .collect();
+                let reduced: Vec<Evaluated> = removable
+                    .par_iter()
+                    .map(|&e| {
+                        let smaller = st.without(e);
+                        let start = st.embed(&current.fitted.theta, &smaller);
+                        let f = fit::fit(
+                            &smaller,
+                            &d.ut,
+                            &d.yt,
+                            Some(&start),
+                            None,
+                            repolish_budget(opts),
+                            opts.seed.wrapping_add(100 + round as u64),
+                        );
+                        evaluate(f, &d, opts)
+                    })
+                    .collect();
+                let band = current_summary.validate_band;
+                let drop = removable
+                    .iter()
+                    .zip(&reduced)
+                    .filter(|(_, r)| r.validate_rmse <= band[1])
+                    .min_by(|a, b| a.1.validate_ic.total_cmp(&b.1.validate_ic));
+                evaluations += reduced.iter().map(|r| r.fitted.evaluations).sum::<u64>();
+                let Some((&e, r)) = drop else { break };
+                let fmt = |x: f64| crate::report::table::sig(x, 3);
+                for c in candidates.iter_mut().filter(|c| c.accepted && !c.dropped) {
+                    if c.name.split('+').any(|n| n == e.name()) {
+                        c.dropped = true;
+                        c.notes.push(format!(
+                        "dropped by the backward step: without it the final model's validation RMSE is {} (band [{}, {}] {unit})",
+                        fmt(r.validate_rmse),
+                        fmt(band[0]),
+                        fmt(band[1])
+                    ));
+                    }
+                }
+                left_out.retain(|n| n != e.name());
+                current = r.clone();
+                current_summary = summary(&current, &d, &boot, opts.seed);
+            }
         }
-        let pool = rest;
-        let mut record = |p: &Proposal, c: &Evaluated, v: &Verdict, candidates: &mut Vec<_>| {
+        // Once the search ends: the model with a named creep or drift exchanged for the other
+        // (see [`EXCHANGES`]) is taken when all the data support it better by the margin,
+        // neither record worse by more than it, and it predicts the validation record inside
+        // the model's band; then the search goes on from it.
+        if exchanged {
+            break;
+        }
+        exchanged = true;
+        let (tried, used) = exchanges(&current.fitted, &left_out, &d, opts, round + 1);
+        evaluations += used;
+        if tried.is_empty() {
+            break;
+        }
+        round += 1;
+        let parent_label = current.fitted.structure.label();
+        let band = current_summary.validate_band;
+        let margin = opts.bic_margin;
+        let fmt = |x: f64| crate::report::table::sig(x, 3);
+        let mut best: Option<(usize, f64)> = None;
+        let mut at = Vec::new();
+        for (i, (out, p, c)) in tried.iter().enumerate() {
             evaluations += c.fitted.evaluations;
+            let ([d_bic, d_vic, d_all], passed) = exchange_gate(c, &current, band, nt, margin);
+            if passed && best.is_none_or(|b| d_all < b.1) {
+                best = Some((i, d_all));
+            }
+            at.push(candidates.len());
             candidates.push(Candidate {
                 name: p.name(),
                 form: p.form(),
                 transfer: transfer(p),
-                placement: p
-                    .effects()
-                    .contains(&Effect::Dynamics)
-                    .then(|| p.placement.name().to_string()),
+                placement: None,
                 round,
-                parent: parent.label(),
-                delta_bic: v.delta_bic,
+                parent: format!("{parent_label} without {}", out.name()),
+                delta_bic: d_bic,
                 train_rmse: c.fitted.rmse(nt),
                 validate_rmse: c.validate_rmse,
                 validate_ic: c.validate_ic,
@@ -1071,228 +1431,72 @@ pub fn diagnose_with_tests(
                 accepted: false,
                 dropped: false,
                 params: named(&c.fitted),
-                evidence: v.evidence.clone(),
+                evidence: format!(
+                    concat!(
+                        "exchange for {}: ΔBIC {} and validation evidence {} against the model ",
+                        "with it (each needs < {}), together {} (needs < -{}); ",
+                        "validation RMSE {} vs band [{}, {}] {} (needs at most the top): {}"
+                    ),
+                    out.name(),
+                    fmt(d_bic),
+                    fmt(d_vic),
+                    margin,
+                    fmt(d_all),
+                    margin,
+                    fmt(c.validate_rmse),
+                    fmt(band[0]),
+                    fmt(band[1]),
+                    unit,
+                    if passed { "yes" } else { "no" },
+                ),
                 notes: Vec::new(),
                 evaluations: c.fitted.evaluations,
             });
-            candidates.len() - 1
-        };
-        // Among the candidates that pass the gate, the one all the data support best: its
-        // training BIC plus its information criterion on the validation record it was not
-        // fitted to (training BIC alone favours flexible forms that do not predict; the
-        // validation record alone cannot tell forms that predict alike).
-        let mut best: Option<(usize, usize, f64)> = None;
-        let mut best_per_record: Option<(usize, usize, f64)> = None;
-        let mut best_timing: Option<(usize, usize, f64)> = None;
-        let mut singles: Vec<(usize, f64)> = Vec::new();
-        for (i, ((p, c), v)) in pool.iter().zip(&tried).zip(&verdicts).enumerate() {
-            let at = record(p, c, v, &mut candidates);
-            let evidence = v.delta_bic + c.validate_ic;
-            if v.passed && best.is_none_or(|b| evidence < b.2) {
-                best = Some((i, at, evidence));
-            }
-            if v.passed && p.is_timing() && best_timing.is_none_or(|b| evidence < b.2) {
-                best_timing = Some((i, at, evidence));
-            }
-            let per_record = p.parts.iter().all(|x| x.0.per_record());
-            if v.passed && per_record && best_per_record.is_none_or(|b| evidence < b.2) {
-                best_per_record = Some((i, at, evidence));
-            }
-            singles.push((i, v.delta_bic));
         }
-        // Transfer: creep's initial-state decays are a drift of each record; when a drift
-        // of the record's own explains the training record about as well (ΔBIC within the
-        // margin of creep's), the drift is taken first and creep must then pass on top of
-        // it by what the input drives (carried to the validation record with the same
-        // parameters); the backward step drops the drift if creep turns out to explain it.
-        let train_delta = |i: usize| singles.iter().find(|x| x.0 == i).map_or(0.0, |x| x.1);
-        if let (Some(b), Some(r)) = (best, best_per_record)
-            && pool[b.0].effects().contains(&Effect::Creep)
-            && drift_first(
-                [train_delta(b.0), tried[b.0].validate_ic],
-                [train_delta(r.0), tried[r.0].validate_ic],
-                opts.bic_margin,
-            )
-        {
-            candidates[b.1].notes.push(format!(
-                "transfer: a drift of each record ({}) passes too: taken first, so creep must add what the input drives",
-                pool[r.0].form()
-            ));
-            best = Some(r);
-        }
-        // A lag in disguise yields to input timing that passes too: a mode with no
-        // resonance is a low-pass; creep pinned at its fastest time constant is a lag
-        // faster than any creep (the backward step drops the timing if creep, named
-        // later, explains it).
-        if let (Some(b), Some(t)) = (best, best_timing) {
-            let fitted = &tried[b.0].fitted;
-            let why = if !parent.has(Effect::Dynamics) && resonant(fitted, dt) == Some(false) {
-                Some(format!(
-                    "no resonance (no mode peaks 2x below {RESOLVED_FRACTION} of the sampling rate): a low-pass; input timing ({}) passes too and is named instead",
-                    pool[t.0].name()
-                ))
-            } else if pool[b.0].effects() == [Effect::Creep] && creep_pinned_fast(fitted) {
-                Some(format!(
-                    "its fast element sits at the fastest creep time constant (ten samples): a lag; input timing ({}) passes too and is named first",
-                    pool[t.0].name()
-                ))
-            } else {
-                None
-            };
-            if let Some(why) = why {
-                candidates[b.1].notes.push(why);
-                best = Some(t);
-            }
-        }
-        let mut chosen: Option<(Proposal, Evaluated, usize)> = best.map(|(i, at, _)| {
-            let c = tried.get(i).expect("index of a candidate");
-            (pool[i].clone(), c.clone(), at)
-        });
-        // No single effect passes, but the residual is structured: two effects concealed
-        // together may each be too small alone. Pairs of the best singles (one form per
-        // effect), started at the singles' fits.
-        if chosen.is_none() && current_summary.p_value <= 0.05 {
-            singles.sort_by(|a, b| a.1.total_cmp(&b.1));
-            let mut top: Vec<usize> = Vec::new();
-            for &(i, delta) in &singles {
-                let e = pool[i].parts[0].0;
-                let upgrade = parent.has(e);
-                if delta < 0.0
-                    && !upgrade
-                    && pool[i].placement == parent.placement()
-                    && !top.iter().any(|&j| pool[j].parts[0].0 == e)
-                {
-                    top.push(i);
-                }
-                if top.len() == opts.pair_pool {
-                    break;
-                }
-            }
-            // Not a delay with an input lag: both only time the input, and together they
-            // are a more flexible timing that the data can rarely tell apart.
-            let pairs: Vec<(usize, usize)> = (0..top.len())
-                .flat_map(|a| (a + 1..top.len()).map(move |b| (a, b)))
-                .map(|(a, b)| (top[a], top[b]))
-                .filter(|&(a, b)| !(pool[a].is_timing() && pool[b].is_timing()))
-                .collect();
-            let proposals: Vec<Proposal> = pairs
-                .iter()
-                .map(|&(a, b)| Proposal {
-                    parts: vec![pool[a].parts[0], pool[b].parts[0]],
-                    placement: parent.placement(),
-                })
-                .collect();
-            let fitted: Vec<Evaluated> = proposals
-                .par_iter()
-                .zip(&pairs)
-                .map(|(p, &(a, b))| {
-                    fit_proposal(
-                        &current.fitted,
-                        p,
-                        &[&tried[a].fitted, &tried[b].fitted],
-                        &d,
-                        opts,
-                        round,
-                    )
-                })
-                .collect();
-            let mut best: Option<(usize, usize, f64)> = None;
-            for (i, (p, c)) in proposals.iter().zip(&fitted).enumerate() {
-                let v = judge(
-                    c,
-                    &current,
-                    // Each effect of a pair earns what a single must.
-                    &Gate {
-                        margin: 2.0 * opts.bic_margin,
-                        min_explained: 2.0 * MIN_EXPLAINED,
-                        ..gate
-                    },
-                );
-                let at = record(p, c, &v, &mut candidates);
-                let evidence = v.delta_bic + c.validate_ic;
-                if v.passed && best.is_none_or(|b| evidence < b.2) {
-                    best = Some((i, at, evidence));
-                }
-            }
-            chosen = best.map(|(i, at, _)| (proposals[i].clone(), fitted[i].clone(), at));
-        }
-        let Some((p, c, at)) = chosen else {
-            search_stop = format!("after round {round}: no candidate passes the gate");
+        let Some((i, _)) = best else {
+            exchange_note = format!("; round {round} tried exchanging creep and drift: none taken");
             break;
         };
-        candidates[at].accepted = true;
-        for e in p.effects() {
-            if !parent.has(e) {
-                left_out.push(e.name().to_string());
+        let (out, p, c) = &tried[i];
+        candidates[at[i]].accepted = true;
+        candidates[at[i]].notes.push(format!(
+            "exchanged for {}: all the data support it better",
+            out.name()
+        ));
+        for c in candidates.iter_mut().filter(|c| c.accepted && !c.dropped) {
+            if c.name.split('+').any(|n| n == out.name()) {
+                c.dropped = true;
+                c.notes.push(format!(
+                    "exchanged for {} after the search (round {round})",
+                    p.name()
+                ));
             }
         }
-        // The next round's parent, polished to convergence: otherwise every candidate
-        // of the next round gains from the parent's own unfinished polish, and the first
-        // to pass is a passenger.
+        left_out.retain(|n| n != out.name());
+        let partner = p.parts[0].0.name().to_string();
+        if !left_out.contains(&partner) {
+            left_out.push(partner);
+        }
         let polished = repolish(&c.fitted, &d, opts, 200 + round as u64);
         evaluations += polished.fitted.evaluations;
         current = if polished.fitted.linear.cost <= c.fitted.linear.cost {
             polished
         } else {
-            c
+            c.clone()
         };
         current_summary = summary(&current, &d, &boot, opts.seed);
-        // Backward, after every acceptance: an accepted effect the model no longer needs
-        // (removing it leaves the validation RMSE inside the model's band) is dropped, the
-        // least needed first, and the search goes on from the smaller model (an effect that
-        // stood in for two, e.g. a fast creep for an input lag and its initial state for a
-        // drift, leaves room for the second once the first is named).
-        while left_out.len() >= 2 {
-            let st = current.fitted.structure.clone();
-            let removable: Vec<Effect> = st
-                .effects()
-                .iter()
-                .copied()
-                .filter(|e| left_out.iter().any(|n| n == e.name()))
-                .filter(|e| !(*e == Effect::Dynamics && st.placement() == Placement::Feedback))
-                .collect();
-            let reduced: Vec<Evaluated> = removable
-                .par_iter()
-                .map(|&e| {
-                    let smaller = st.without(e);
-                    let start = st.embed(&current.fitted.theta, &smaller);
-                    let f = fit::fit(
-                        &smaller,
-                        &d.ut,
-                        &d.yt,
-                        Some(&start),
-                        None,
-                        repolish_budget(opts),
-                        opts.seed.wrapping_add(100 + round as u64),
-                    );
-                    evaluate(f, &d, opts)
-                })
-                .collect();
-            let band = current_summary.validate_band;
-            let drop = removable
-                .iter()
-                .zip(&reduced)
-                .filter(|(_, r)| r.validate_rmse <= band[1])
-                .min_by(|a, b| a.1.validate_ic.total_cmp(&b.1.validate_ic));
-            evaluations += reduced.iter().map(|r| r.fitted.evaluations).sum::<u64>();
-            let Some((&e, r)) = drop else { break };
-            let fmt = |x: f64| crate::report::table::sig(x, 3);
-            for c in candidates.iter_mut().filter(|c| c.accepted && !c.dropped) {
-                if c.name.split('+').any(|n| n == e.name()) {
-                    c.dropped = true;
-                    c.notes.push(format!(
-                        "dropped by the backward step: without it the final model's validation RMSE is {} (band [{}, {}] {unit})",
-                        fmt(r.validate_rmse),
-                        fmt(band[0]),
-                        fmt(band[1])
-                    ));
-                }
+        exchange_note = format!(
+            "; round {round} exchanged {} for {}{}",
+            out.name(),
+            p.name(),
+            if round < opts.max_rounds {
+                ", then the search went on"
+            } else {
+                ""
             }
-            left_out.retain(|n| n != e.name());
-            current = r.clone();
-            current_summary = summary(&current, &d, &boot, opts.seed);
-        }
+        );
     }
+    search_stop.push_str(&exchange_note);
     let free_runs: Vec<FreeRun> = tests
         .iter()
         .map(|t| FreeRun {
@@ -1468,6 +1672,104 @@ mod tests {
         let c = fit_proposal(&parent, &creep, &[], &data, &opts, 1);
         let rmse = c.fitted.rmse(n);
         assert!(rmse < 1.1 * sigma, "creep leaves {rmse} (noise {sigma})");
+    }
+
+    /// The exchange of [`EXCHANGES`]: a drift of each record fitted where the data hold a
+    /// slow creep (written here with `BoucWenState` and a Kelvin-Voigt element from rest,
+    /// a different excitation on the validation record) is exchanged for creep; a true
+    /// drift (a wander, another on the validation record) is kept.
+    #[test]
+    fn a_drift_standing_in_for_creep_is_exchanged_and_a_true_drift_kept() {
+        use crate::physics::bouc_wen::{BoucWenParams, BoucWenState};
+        let (dt, n, sigma) = (1e-3, 6000, 1e-3);
+        let wave = |rate: f64, amp: f64| -> Vec<f64> {
+            (0..n)
+                .map(|k| {
+                    let t = k as f64 * dt;
+                    let phase = (t * (rate + 0.1 * t)).fract();
+                    0.05 + amp * (1.0 - (2.0 * phase - 1.0).abs())
+                })
+                .collect()
+        };
+        let p = BoucWenParams {
+            d_e: 0.17,
+            alpha: 0.05,
+            beta: 0.45,
+            gamma: 0.2,
+            n: 1.0,
+            d0: 0.0,
+        };
+        let record = |u: &[f64], creep: f64, drift: &dyn Fn(f64) -> f64, salt: u64| {
+            let mut bw = BoucWenState::new(u[0]);
+            let a = 1.0 - (-dt / 14.0f64).exp();
+            let mut x = 0.0;
+            let mut rng = TrialSeed::derive(salt, "exchange", "noise", 0).rng(0);
+            u.iter()
+                .enumerate()
+                .map(|(k, &v)| {
+                    let d = bw.step(&p, v);
+                    let out = d + creep * x + drift(k as f64 * dt);
+                    x += a * (d - x);
+                    out + sigma * standard_normal(&mut rng)
+                })
+                .collect::<Vec<f64>>()
+        };
+        let (ut, uv) = (wave(1.0, 4.6), wave(0.6, 3.8));
+        let opts = Options::default();
+        let drift_only: [&dyn Fn(f64) -> f64; 2] = [
+            &|t: f64| 0.02 * (std::f64::consts::TAU * t / 4.0).sin(),
+            &|t: f64| -0.015 * (std::f64::consts::TAU * t / 5.0).cos(),
+        ];
+        let none = |_: f64| 0.0;
+        for (creep, drift, exchanged) in [
+            (0.75, [&none as &dyn Fn(f64) -> f64, &none], true),
+            (0.0, drift_only, false),
+        ] {
+            let data = Data {
+                yt: Arc::new(record(&ut, creep, drift[0], 1)),
+                yv: record(&uv, creep, drift[1], 2),
+                ut: Arc::new(ut.clone()),
+                uv: uv.clone(),
+                periodic: false,
+            };
+            let plain = Structure::new(&[], Some(1.0), Context::from_training(&ut, dt));
+            let base = fit::fit(
+                &plain,
+                &data.ut,
+                &data.yt,
+                None,
+                None,
+                opts.baseline_budget,
+                1,
+            );
+            let spline = Proposal {
+                parts: vec![(Effect::OffsetDrift, Form::Spline)],
+                placement: Placement::After,
+            };
+            let with_drift = fit_proposal(&base, &spline, &[], &data, &opts, 1);
+            let ev: Vec<f64> = data
+                .yv
+                .iter()
+                .zip(&with_drift.out_v)
+                .map(|(a, b)| a - b)
+                .collect();
+            let band = rmse_band(&ev, 1, "exchange");
+            let named = vec!["offset-drift".to_string()];
+            let (tried, _) = exchanges(&with_drift.fitted, &named, &data, &opts, 1);
+            assert_eq!(tried.len(), Effect::Creep.forms().len());
+            let gates: Vec<([f64; 3], bool)> = tried
+                .iter()
+                .map(|(_, _, c)| exchange_gate(c, &with_drift, band, n, opts.bic_margin))
+                .collect();
+            assert_eq!(
+                gates.iter().any(|g| g.1),
+                exchanged,
+                "creep {creep}: drift model validation RMSE {} band {band:?}, exchanges [ΔBIC, Δvalidation, sum] {:?} validation RMSE {:?}",
+                with_drift.validate_rmse,
+                gates.iter().map(|g| g.0).collect::<Vec<_>>(),
+                tried.iter().map(|t| t.2.validate_rmse).collect::<Vec<_>>()
+            );
+        }
     }
 
     /// Creep whose larger element sits at ten samples is a lag; a slow element that does
