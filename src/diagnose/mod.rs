@@ -1375,13 +1375,19 @@ pub fn diagnose_with_tests(
                 let fmt = |x: f64| crate::report::table::sig(x, 3);
                 for c in candidates.iter_mut().filter(|c| c.accepted && !c.dropped) {
                     if c.name.split('+').any(|n| n == e.name()) {
-                        c.dropped = true;
+                        // A pair keeps its other effect: only a single is dropped whole.
+                        c.dropped = c.name == e.name();
                         c.notes.push(format!(
-                        "dropped by the backward step: without it the final model's validation RMSE is {} (band [{}, {}] {unit})",
-                        fmt(r.validate_rmse),
-                        fmt(band[0]),
-                        fmt(band[1])
-                    ));
+                            concat!(
+                                "{} dropped by the backward step: without it the final ",
+                                "model's validation RMSE is {} (band [{}, {}] {})"
+                            ),
+                            e.name(),
+                            fmt(r.validate_rmse),
+                            fmt(band[0]),
+                            fmt(band[1]),
+                            unit
+                        ));
                     }
                 }
                 left_out.retain(|n| n != e.name());
@@ -1460,14 +1466,19 @@ pub fn diagnose_with_tests(
         let (out, p, c) = &tried[i];
         candidates[at[i]].accepted = true;
         candidates[at[i]].notes.push(format!(
-            "exchanged for {}: all the data support it better",
+            "taken in place of {}: all the data support it better",
             out.name()
         ));
-        for c in candidates.iter_mut().filter(|c| c.accepted && !c.dropped) {
+        for (j, c) in candidates.iter_mut().enumerate() {
+            if !c.accepted || c.dropped || j == at[i] {
+                continue;
+            }
             if c.name.split('+').any(|n| n == out.name()) {
-                c.dropped = true;
+                // A pair keeps its other effect: only a single is dropped whole.
+                c.dropped = c.name == out.name();
                 c.notes.push(format!(
-                    "exchanged for {} after the search (round {round})",
+                    "{} dropped by the exchange of round {round}: {} in its place",
+                    out.name(),
                     p.name()
                 ));
             }

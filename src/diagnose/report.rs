@@ -99,7 +99,7 @@ pub fn text(d: &Diagnosis) -> String {
     if d.candidates.iter().any(|c| c.dropped) {
         let _ = writeln!(
             s,
-            "  (- accepted, then dropped by the backward step: the final model does not need it)"
+            "  (- accepted, then dropped by the backward step or an exchange: its note says which)"
         );
     }
     for c in d.in_final() {
