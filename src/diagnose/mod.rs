@@ -1703,11 +1703,11 @@ mod tests {
         assert!(rmse < 1.1 * sigma, "creep leaves {rmse} (noise {sigma})");
     }
 
-    /// A direction asymmetry, written here by hand (Bouc-Wen n = 1, `dh/dv = α (1 + a s)
-    /// - β s h - γ |h|` with `s` the sign of the drive's step, 20 sub-steps per sample,
-    /// a = +0.3), fitted on top of a model with a rate-dependent gain (none in the data):
-    /// the candidate finds a = +0.3, not the mirror optimum (a of the other sign, γ
-    /// negative), and leaves the noise.
+    /// A direction asymmetry, written here by hand (Bouc-Wen n = 1,
+    /// `dh/dv = α (1 + a s) - β s h - γ |h|` with `s` the sign of the drive's step, 20
+    /// sub-steps per sample, a = +0.3), fitted on top of a model with a rate-dependent gain
+    /// (none in the data): the candidate finds a = +0.3, not the mirror optimum (a of the
+    /// other sign, γ negative), and leaves the noise.
     #[test]
     fn a_direction_asymmetry_is_searched_with_the_loop_shape() {
         let (dt, n, sigma) = (1e-3, 6000, 1e-3);
