@@ -576,24 +576,25 @@ fn candidate_pool(parent: &Structure, opts: &Options) -> Vec<Proposal> {
     pool
 }
 
-/// Fits proposal `p` on top of `parent`: the parent's parameters carried over, the new
+/// Fits proposal `p` on top of `parent` at `theta`: the parent's parameters carried over, the new
 /// effects' searched (started from `seeds`' values where given, e.g. the singles of a
 /// pair), then everything polished. A new placement is not nested: its oscillator and
 /// loop shape are searched afresh.
 fn fit_proposal(
-    parent: &Fitted,
+    parent: &Structure,
+    theta: &[f64],
     p: &Proposal,
     seeds: &[&Fitted],
     d: &Data,
     opts: &Options,
     round: usize,
 ) -> Evaluated {
-    let moved = p.placement != parent.structure.placement();
-    let mut st = parent.structure.with_placement(p.placement);
+    let moved = p.placement != parent.placement();
+    let mut st = parent.with_placement(p.placement);
     for &(e, f) in &p.parts {
         st = st.extended_with(e, f);
     }
-    let mut start = parent.structure.embed(&parent.theta, &st);
+    let mut start = parent.embed(theta, &st);
     for s in seeds {
         for (i, spec) in st.specs().iter().enumerate() {
             if spec.effect.is_some_and(|e| p.effects().contains(&e))
@@ -603,7 +604,7 @@ fn fit_proposal(
             }
         }
     }
-    let parent_specs = parent.structure.specs();
+    let parent_specs = parent.specs();
     let new_effect = |s: &ParamSpec| {
         s.effect.is_some_and(|e| p.effects().contains(&e))
             || !parent_specs.iter().any(|x| x.name == s.name)
@@ -677,22 +678,21 @@ fn drift_first(creep: [f64; 2], drift: [f64; 2], margin: f64) -> bool {
 /// whichever was named first shapes every later round: a drift soaks up the mismatch of a
 /// creep named after it, a creep named for a drift stays beside the rate-dependence that
 /// followed. The pair `(named, partner)`: drop `named` and search `partner` (every form,
-/// or its own form again when the model has it) on the rest, polished.
+/// or its own form again when the model has it) on the rest, everything polished after.
 const EXCHANGES: [(Effect, Effect); 2] = [
     (Effect::OffsetDrift, Effect::Creep),
     (Effect::Creep, Effect::OffsetDrift),
 ];
 
 /// The exchanges of [`EXCHANGES`] open to `current` (its effects named in `named`): per
-/// exchange the effect dropped, the proposal and its fit on the rest; also the evaluations
-/// the rests took.
+/// exchange the effect dropped, the proposal and its fit on the rest.
 fn exchanges(
     current: &Fitted,
     named: &[String],
     d: &Data,
     opts: &Options,
     round: usize,
-) -> (Vec<(Effect, Proposal, Evaluated)>, u64) {
+) -> Vec<(Effect, Proposal, Evaluated)> {
     let st = &current.structure;
     let open: Vec<(Effect, Effect)> = EXCHANGES
         .iter()
@@ -702,21 +702,14 @@ fn exchanges(
     // The rest starts where the current model has it: the partner's search polishes every
     // coordinate afterwards, so a polish of the rest alone (thousands of sequential
     // evaluations on a long record) would only be repeated.
-    let rests: Vec<Fitted> = open
+    let rests: Vec<(Structure, Vec<f64>)> = open
         .iter()
         .map(|&(e, _)| {
             let smaller = st.without(e);
             let theta = st.embed(&current.theta, &smaller);
-            let linear = smaller.fit_linear(&theta, &d.ut, &d.yt);
-            Fitted {
-                structure: smaller,
-                theta,
-                linear,
-                evaluations: 1,
-            }
+            (smaller, theta)
         })
         .collect();
-    let used = rests.len() as u64;
     let jobs: Vec<(usize, Proposal)> = open
         .iter()
         .enumerate()
@@ -736,14 +729,13 @@ fn exchanges(
             })
         })
         .collect();
-    let tried = jobs
-        .par_iter()
+    jobs.par_iter()
         .map(|(i, p)| {
-            let c = fit_proposal(&rests[*i], p, &[], d, opts, 300 + round);
+            let (rest, theta) = &rests[*i];
+            let c = fit_proposal(rest, theta, p, &[], d, opts, 300 + round);
             (open[*i].0, p.clone(), c)
         })
-        .collect();
-    (tried, used)
+        .collect()
 }
 
 /// An exchanged model against the one it would replace: `[training ΔBIC, Δ validation
@@ -892,18 +884,60 @@ fn repolish_budget(opts: &Options) -> Budget {
     }
 }
 
-/// `f` polished again from its optimum ([`repolish_budget`]), evaluated.
-fn repolish(f: &Fitted, d: &Data, opts: &Options, salt: u64) -> Evaluated {
+/// An accepted candidate polished again from its optimum ([`repolish_budget`]), the better
+/// of the two kept; also the evaluations the polish took.
+fn repolish(c: Evaluated, d: &Data, opts: &Options, salt: u64) -> (Evaluated, u64) {
     let g = fit::fit(
-        &f.structure,
+        &c.fitted.structure,
         &d.ut,
         &d.yt,
-        Some(&f.theta),
+        Some(&c.fitted.theta),
         None,
         repolish_budget(opts),
         opts.seed.wrapping_add(salt),
     );
-    evaluate(g, d, opts)
+    let polished = evaluate(g, d, opts);
+    let used = polished.fitted.evaluations;
+    let better = if polished.fitted.linear.cost <= c.fitted.linear.cost {
+        polished
+    } else {
+        c
+    };
+    (better, used)
+}
+
+/// The report's line of a fitted proposal, not (yet) accepted.
+fn candidate(
+    p: &Proposal,
+    c: &Evaluated,
+    round: usize,
+    parent: String,
+    delta_bic: f64,
+    evidence: String,
+    nt: usize,
+) -> Candidate {
+    Candidate {
+        name: p.name(),
+        form: p.form(),
+        transfer: transfer(p),
+        placement: p
+            .effects()
+            .contains(&Effect::Dynamics)
+            .then(|| p.placement.name().to_string()),
+        round,
+        parent,
+        delta_bic,
+        train_rmse: c.fitted.rmse(nt),
+        validate_rmse: c.validate_rmse,
+        validate_ic: c.validate_ic,
+        score: c.score,
+        accepted: false,
+        dropped: false,
+        params: named(&c.fitted),
+        evidence,
+        notes: Vec::new(),
+        evaluations: c.fitted.evaluations,
+    }
 }
 
 /// How a proposal's parameters reach another record.
@@ -1125,7 +1159,7 @@ pub fn diagnose_with_tests(
                 pool.drain(..).partition(|p| moves(p));
             let mut tried: Vec<Evaluated> = rest
                 .par_iter()
-                .map(|p| fit_proposal(&current.fitted, p, &[], &d, opts, round))
+                .map(|p| fit_proposal(&parent, &current.fitted.theta, p, &[], &d, opts, round))
                 .collect();
             let band = current_summary.validate_band;
             let gate = Gate {
@@ -1158,7 +1192,7 @@ pub fn diagnose_with_tests(
             if dynamics_helps {
                 let moved: Vec<Evaluated> = placed
                     .par_iter()
-                    .map(|p| fit_proposal(&current.fitted, p, &[], &d, opts, round))
+                    .map(|p| fit_proposal(&parent, &current.fitted.theta, p, &[], &d, opts, round))
                     .collect();
                 verdicts.extend(moved.iter().map(|c| judge(c, &current, &gate)));
                 tried.extend(moved);
@@ -1167,28 +1201,15 @@ pub fn diagnose_with_tests(
             let pool = rest;
             let mut record = |p: &Proposal, c: &Evaluated, v: &Verdict, candidates: &mut Vec<_>| {
                 evaluations += c.fitted.evaluations;
-                candidates.push(Candidate {
-                    name: p.name(),
-                    form: p.form(),
-                    transfer: transfer(p),
-                    placement: p
-                        .effects()
-                        .contains(&Effect::Dynamics)
-                        .then(|| p.placement.name().to_string()),
+                candidates.push(candidate(
+                    p,
+                    c,
                     round,
-                    parent: parent.label(),
-                    delta_bic: v.delta_bic,
-                    train_rmse: c.fitted.rmse(nt),
-                    validate_rmse: c.validate_rmse,
-                    validate_ic: c.validate_ic,
-                    score: c.score,
-                    accepted: false,
-                    dropped: false,
-                    params: named(&c.fitted),
-                    evidence: v.evidence.clone(),
-                    notes: Vec::new(),
-                    evaluations: c.fitted.evaluations,
-                });
+                    parent.label(),
+                    v.delta_bic,
+                    v.evidence.clone(),
+                    nt,
+                ));
                 candidates.len() - 1
             };
             // Among the candidates that pass the gate, the one all the data support best: its
@@ -1301,7 +1322,8 @@ pub fn diagnose_with_tests(
                     .zip(&pairs)
                     .map(|(p, &(a, b))| {
                         fit_proposal(
-                            &current.fitted,
+                            &parent,
+                            &current.fitted.theta,
                             p,
                             &[&tried[a].fitted, &tried[b].fitted],
                             &d,
@@ -1343,13 +1365,9 @@ pub fn diagnose_with_tests(
             // The next round's parent, polished to convergence: otherwise every candidate
             // of the next round gains from the parent's own unfinished polish, and the first
             // to pass is a passenger.
-            let polished = repolish(&c.fitted, &d, opts, 200 + round as u64);
-            evaluations += polished.fitted.evaluations;
-            current = if polished.fitted.linear.cost <= c.fitted.linear.cost {
-                polished
-            } else {
-                c
-            };
+            let used;
+            (current, used) = repolish(c, &d, opts, 200 + round as u64);
+            evaluations += used;
             current_summary = summary(&current, &d, &boot, opts.seed);
             // Backward, after every acceptance: an accepted effect the model no longer needs
             // (removing it leaves the validation RMSE inside the model's band) is dropped, the
@@ -1421,8 +1439,7 @@ pub fn diagnose_with_tests(
             break;
         }
         exchanged = true;
-        let (tried, used) = exchanges(&current.fitted, &left_out, &d, opts, round + 1);
-        evaluations += used;
+        let tried = exchanges(&current.fitted, &left_out, &d, opts, round + 1);
         if tried.is_empty() {
             break;
         }
@@ -1440,42 +1457,33 @@ pub fn diagnose_with_tests(
                 best = Some((i, d_all));
             }
             at.push(candidates.len());
-            candidates.push(Candidate {
-                name: p.name(),
-                form: p.form(),
-                transfer: transfer(p),
-                placement: None,
-                round,
-                parent: format!("{parent_label} without {}", out.name()),
-                delta_bic: d_bic,
-                train_rmse: c.fitted.rmse(nt),
-                validate_rmse: c.validate_rmse,
-                validate_ic: c.validate_ic,
-                score: c.score,
-                accepted: false,
-                dropped: false,
-                params: named(&c.fitted),
-                evidence: format!(
-                    concat!(
-                        "exchange for {}: ΔBIC {} and validation evidence {} against the model ",
-                        "with it (each needs < {}), together {} (needs < -{}); ",
-                        "validation RMSE {} vs band [{}, {}] {} (needs at most the top): {}"
-                    ),
-                    out.name(),
-                    fmt(d_bic),
-                    fmt(d_vic),
-                    margin,
-                    fmt(d_all),
-                    margin,
-                    fmt(c.validate_rmse),
-                    fmt(band[0]),
-                    fmt(band[1]),
-                    unit,
-                    if passed { "yes" } else { "no" },
+            let evidence = format!(
+                concat!(
+                    "exchange for {}: ΔBIC {} and validation evidence {} against the model ",
+                    "with it (each needs < {}), together {} (needs < -{}); ",
+                    "validation RMSE {} vs band [{}, {}] {} (needs at most the top): {}"
                 ),
-                notes: Vec::new(),
-                evaluations: c.fitted.evaluations,
-            });
+                out.name(),
+                fmt(d_bic),
+                fmt(d_vic),
+                margin,
+                fmt(d_all),
+                margin,
+                fmt(c.validate_rmse),
+                fmt(band[0]),
+                fmt(band[1]),
+                unit,
+                if passed { "yes" } else { "no" },
+            );
+            candidates.push(candidate(
+                p,
+                c,
+                round,
+                format!("{parent_label} without {}", out.name()),
+                d_bic,
+                evidence,
+                nt,
+            ));
         }
         let Some((i, _)) = best else {
             exchange_note = format!("; round {round} tried exchanging creep and drift: none taken");
@@ -1506,13 +1514,9 @@ pub fn diagnose_with_tests(
         if !left_out.contains(&partner) {
             left_out.push(partner);
         }
-        let polished = repolish(&c.fitted, &d, opts, 200 + round as u64);
-        evaluations += polished.fitted.evaluations;
-        current = if polished.fitted.linear.cost <= c.fitted.linear.cost {
-            polished
-        } else {
-            c.clone()
-        };
+        let used;
+        (current, used) = repolish(c.clone(), &d, opts, 200 + round as u64);
+        evaluations += used;
         current_summary = summary(&current, &d, &boot, opts.seed);
         exchange_note = format!(
             "; round {round} exchanged {} for {}{}",
@@ -1611,6 +1615,58 @@ mod tests {
     use super::*;
     use crate::physics::structure::tests::theta_with;
 
+    /// A triangle from 0.05 to 0.05 + `amp` whose frequency rises from `rate` Hz by 0.1 Hz
+    /// per second: the unipolar drive of the creep tests.
+    fn triangle_chirp(n: usize, dt: f64, rate: f64, amp: f64) -> Vec<f64> {
+        (0..n)
+            .map(|k| {
+                let t = k as f64 * dt;
+                let phase = (t * (rate + 0.1 * t)).fract();
+                0.05 + amp * (1.0 - (2.0 * phase - 1.0).abs())
+            })
+            .collect()
+    }
+
+    /// The creep tests' record, written without `Structure`: `BoucWenState` (n = 1), then a
+    /// Kelvin-Voigt element of gain `creep` at 14 s from rest, plus `drift(t)` and noise of
+    /// RMS `sigma` from the stream `(salt, label)`.
+    fn creep_record(
+        u: &[f64],
+        dt: f64,
+        creep: f64,
+        drift: &dyn Fn(f64) -> f64,
+        sigma: f64,
+        (salt, label): (u64, &str),
+    ) -> Vec<f64> {
+        use crate::physics::bouc_wen::{BoucWenParams, BoucWenState};
+        let p = BoucWenParams {
+            d_e: 0.17,
+            alpha: 0.05,
+            beta: 0.45,
+            gamma: 0.2,
+            n: 1.0,
+            d0: 0.0,
+        };
+        let mut bw = BoucWenState::new(u[0]);
+        let a = 1.0 - (-dt / 14.0f64).exp();
+        let mut x = 0.0;
+        let mut rng = TrialSeed::derive(salt, label, "noise", 0).rng(0);
+        u.iter()
+            .enumerate()
+            .map(|(k, &v)| {
+                let d = bw.step(&p, v);
+                let out = d + creep * x + drift(k as f64 * dt);
+                x += a * (d - x);
+                out + sigma * standard_normal(&mut rng)
+            })
+            .collect()
+    }
+
+    /// `st` fitted to the training record with the baseline's budget.
+    fn baseline_fit(st: &Structure, data: &Data, opts: &Options) -> Fitted {
+        fit::fit(st, &data.ut, &data.yt, None, None, opts.baseline_budget, 1)
+    }
+
     /// A fitted structure with one effect's parameters (the linear part is not looked at).
     fn fitted_with(effect: Effect, form: Form, values: &[(&str, f64)], dt: f64) -> Fitted {
         let u: Vec<f64> = (0..400).map(|k| (k as f64 * 0.05).sin()).collect();
@@ -1641,36 +1697,9 @@ mod tests {
     /// it reaches the noise.
     #[test]
     fn creep_is_searched_with_the_loop_shape_the_plain_fit_bent() {
-        use crate::physics::bouc_wen::{BoucWenParams, BoucWenState};
         let (dt, n, sigma) = (1e-3, 6000, 1e-3);
-        let u: Vec<f64> = (0..n)
-            .map(|k| {
-                let t = k as f64 * dt;
-                let phase = (t * (1.0 + 0.1 * t)).fract();
-                0.05 + 4.6 * (1.0 - (2.0 * phase - 1.0).abs())
-            })
-            .collect();
-        let p = BoucWenParams {
-            d_e: 0.17,
-            alpha: 0.05,
-            beta: 0.45,
-            gamma: 0.2,
-            n: 1.0,
-            d0: 0.0,
-        };
-        let mut bw = BoucWenState::new(u[0]);
-        let (g, a) = (0.75, 1.0 - (-dt / 14.0f64).exp());
-        let mut x = 0.0;
-        let mut rng = TrialSeed::derive(7, "creep-shape", "noise", 0).rng(0);
-        let y: Vec<f64> = u
-            .iter()
-            .map(|&v| {
-                let d = bw.step(&p, v);
-                let out = d + g * x;
-                x += a * (d - x);
-                out + sigma * standard_normal(&mut rng)
-            })
-            .collect();
+        let u = triangle_chirp(n, dt, 1.0, 4.6);
+        let y = creep_record(&u, dt, 0.75, &|_| 0.0, sigma, (7, "creep-shape"));
         let plain = Structure::new(&[], Some(1.0), Context::from_training(&u, dt));
         let data = Data {
             uv: u.iter().rev().copied().collect(),
@@ -1680,15 +1709,7 @@ mod tests {
             periodic: false,
         };
         let opts = Options::default();
-        let parent = fit::fit(
-            &plain,
-            &data.ut,
-            &data.yt,
-            None,
-            None,
-            opts.baseline_budget,
-            1,
-        );
+        let parent = baseline_fit(&plain, &data, &opts);
         assert!(
             parent.rmse(n) > 3.0 * sigma,
             "the plain fit leaves {}",
@@ -1698,7 +1719,15 @@ mod tests {
             parts: vec![(Effect::Creep, Form::KelvinVoigt)],
             placement: Placement::After,
         };
-        let c = fit_proposal(&parent, &creep, &[], &data, &opts, 1);
+        let c = fit_proposal(
+            &parent.structure,
+            &parent.theta,
+            &creep,
+            &[],
+            &data,
+            &opts,
+            1,
+        );
         let rmse = c.fitted.rmse(n);
         assert!(rmse < 1.1 * sigma, "creep leaves {rmse} (noise {sigma})");
     }
@@ -1755,20 +1784,20 @@ mod tests {
             Context::from_training(&u, dt),
             Placement::After,
         );
-        let parent = fit::fit(
-            &rate,
-            &data.ut,
-            &data.yt,
-            None,
-            None,
-            opts.baseline_budget,
-            1,
-        );
+        let parent = baseline_fit(&rate, &data, &opts);
         let asym = Proposal {
             parts: vec![(Effect::Asymmetry, Form::Direction)],
             placement: Placement::After,
         };
-        let c = fit_proposal(&parent, &asym, &[], &data, &opts, 1);
+        let c = fit_proposal(
+            &parent.structure,
+            &parent.theta,
+            &asym,
+            &[],
+            &data,
+            &opts,
+            1,
+        );
         let fitted_a = named(&c.fitted)["asymmetry_direction"];
         let rmse = c.fitted.rmse(n);
         assert!(
@@ -1784,41 +1813,14 @@ mod tests {
     /// drift (a wander, another on the validation record) is kept.
     #[test]
     fn a_drift_standing_in_for_creep_is_exchanged_and_a_true_drift_kept() {
-        use crate::physics::bouc_wen::{BoucWenParams, BoucWenState};
         let (dt, n, sigma) = (1e-3, 6000, 1e-3);
-        let wave = |rate: f64, amp: f64| -> Vec<f64> {
-            (0..n)
-                .map(|k| {
-                    let t = k as f64 * dt;
-                    let phase = (t * (rate + 0.1 * t)).fract();
-                    0.05 + amp * (1.0 - (2.0 * phase - 1.0).abs())
-                })
-                .collect()
-        };
-        let p = BoucWenParams {
-            d_e: 0.17,
-            alpha: 0.05,
-            beta: 0.45,
-            gamma: 0.2,
-            n: 1.0,
-            d0: 0.0,
-        };
+        let (ut, uv) = (
+            triangle_chirp(n, dt, 1.0, 4.6),
+            triangle_chirp(n, dt, 0.6, 3.8),
+        );
         let record = |u: &[f64], creep: f64, drift: &dyn Fn(f64) -> f64, salt: u64| {
-            let mut bw = BoucWenState::new(u[0]);
-            let a = 1.0 - (-dt / 14.0f64).exp();
-            let mut x = 0.0;
-            let mut rng = TrialSeed::derive(salt, "exchange", "noise", 0).rng(0);
-            u.iter()
-                .enumerate()
-                .map(|(k, &v)| {
-                    let d = bw.step(&p, v);
-                    let out = d + creep * x + drift(k as f64 * dt);
-                    x += a * (d - x);
-                    out + sigma * standard_normal(&mut rng)
-                })
-                .collect::<Vec<f64>>()
+            creep_record(u, dt, creep, drift, sigma, (salt, "exchange"))
         };
-        let (ut, uv) = (wave(1.0, 4.6), wave(0.6, 3.8));
         let opts = Options::default();
         let drift_only: [&dyn Fn(f64) -> f64; 2] = [
             &|t: f64| 0.02 * (std::f64::consts::TAU * t / 4.0).sin(),
@@ -1837,20 +1839,13 @@ mod tests {
                 periodic: false,
             };
             let plain = Structure::new(&[], Some(1.0), Context::from_training(&ut, dt));
-            let base = fit::fit(
-                &plain,
-                &data.ut,
-                &data.yt,
-                None,
-                None,
-                opts.baseline_budget,
-                1,
-            );
+            let base = baseline_fit(&plain, &data, &opts);
             let spline = Proposal {
                 parts: vec![(Effect::OffsetDrift, Form::Spline)],
                 placement: Placement::After,
             };
-            let with_drift = fit_proposal(&base, &spline, &[], &data, &opts, 1);
+            let with_drift =
+                fit_proposal(&base.structure, &base.theta, &spline, &[], &data, &opts, 1);
             let ev: Vec<f64> = data
                 .yv
                 .iter()
@@ -1859,7 +1854,7 @@ mod tests {
                 .collect();
             let band = rmse_band(&ev, 1, "exchange");
             let named = vec!["offset-drift".to_string()];
-            let (tried, _) = exchanges(&with_drift.fitted, &named, &data, &opts, 1);
+            let tried = exchanges(&with_drift.fitted, &named, &data, &opts, 1);
             assert_eq!(tried.len(), Effect::Creep.forms().len());
             let gates: Vec<([f64; 3], bool)> = tried
                 .iter()
