@@ -128,6 +128,14 @@ fn diagnose_structures() -> Vec<(&'static str, Vec<(Effect, Form)>)> {
                 (Effect::OffsetDrift, Form::Spline),
             ],
         ),
+        // The slowest blind cases' final models: every linear block at once.
+        (
+            "log-creep+two-modes",
+            vec![
+                (Effect::Creep, Form::Logarithmic),
+                (Effect::Dynamics, Form::TwoModes),
+            ],
+        ),
     ]
 }
 
@@ -151,6 +159,10 @@ fn diagnose_costs(c: &mut Criterion) {
             .map(|s| match s.name {
                 "creep_g" => 0.05,
                 "creep_g2" => 0.03,
+                "creep_log_gain" => 0.02,
+                "mode_log10_hz" => 150f64.log10(),
+                "mode2_log10_hz" => 40f64.log10(),
+                "mode2_share" => 0.3,
                 _ => s.neutral,
             })
             .collect();
