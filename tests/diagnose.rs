@@ -152,6 +152,9 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
     assert_eq!(json["left_out"], serde_json::json!(["asymmetry"]));
     let noise = json["noise_floor"].as_f64().unwrap();
     assert!((noise / 3e-4 - 1.0).abs() < 0.1, "noise floor {noise}");
+    // White noise on a 1 kHz record: the difference orders agree, the floor is measured.
+    assert_eq!(json["noise_floor_settled"], true);
+    assert!(!text.contains("not settled"), "{text}");
     for key in ["train_rmse", "validate_rmse", "params"] {
         assert!(json["baseline"].get(key).is_some() && json["final"].get(key).is_some());
     }

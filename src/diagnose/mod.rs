@@ -202,6 +202,9 @@ pub struct Diagnosis {
     pub unit: String,
     pub samples: [usize; 2],
     pub noise_floor: f64,
+    /// Whether both records' noise floors have settled ([`residual::noise_floor_settled`]);
+    /// if not, the floor is an upper bound and the noise-floor stop is off.
+    pub noise_floor_settled: bool,
     /// How the Bouc-Wen exponent was chosen.
     pub exponent: String,
     pub baseline: ModelSummary,
@@ -1629,6 +1632,7 @@ pub fn diagnose_with_tests(
         unit,
         samples: [train.len(), validate.len()],
         noise_floor: noise,
+        noise_floor_settled: floor_settled,
         exponent: n_choice,
         baseline,
         located,

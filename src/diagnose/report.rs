@@ -24,8 +24,13 @@ pub fn text(d: &Diagnosis) -> String {
     );
     let _ = writeln!(
         s,
-        "noise floor (from the data): {}{u} RMS",
-        f(d.noise_floor)
+        "noise floor (from the data): {}{u} RMS{}",
+        f(d.noise_floor),
+        if d.noise_floor_settled {
+            ""
+        } else {
+            " (not settled: the 4th and 5th differences disagree, signal is left in them; an upper bound, the noise-floor stop is off)"
+        }
     );
     let b = &d.baseline;
     let _ = writeln!(s, "exponent: {}", d.exponent);
