@@ -202,7 +202,7 @@ pub struct Diagnosis {
     pub unit: String,
     pub samples: [usize; 2],
     pub noise_floor: f64,
-    /// Whether both records' noise floors have settled ([`residual::noise_floor_settled`]);
+    /// Whether both records' noise floors have settled ([`residual::noise_floor_and_settled`]);
     /// if not, the floor is an upper bound and the noise-floor stop is off.
     pub noise_floor_settled: bool,
     /// How the Bouc-Wen exponent was chosen.
@@ -791,7 +791,7 @@ const MIN_EXPLAINED: f64 = 0.15;
 /// pairs (twice that) are not fitted. Over seven blind seeds (20261126-32, 720 cases) no
 /// single was accepted from closer than 0.21 of the noise variance and no pair from
 /// closer than 0.66; 253 rounds and 15 pair searches that named nothing would have been
-/// skipped. Only where the floor has settled ([`residual::noise_floor_settled`]): on seed
+/// skipped. Only where the floor has settled ([`residual::noise_floor_and_settled`]): on seed
 /// 20261133 case 80 (550 Hz) it was 14 % over the generator's noise, a drift was then
 /// accepted at 0.89x it, and the stop had cost that name.
 fn at_noise_floor(validate_rmse: f64, validate_noise: f64, noise: f64, share: f64) -> bool {
@@ -1059,12 +1059,14 @@ pub fn diagnose_with_tests(
         periodic: opts.validate_periodic,
     };
     let ctx = Context::from_training(&train.u, dt).with_hold(opts.hold);
-    let train_noise = residual::noise_floor(&train.y);
-    let validate_noise = residual::noise_floor(&validate.y);
+    let (train_noise, train_settled) = residual::noise_floor_and_settled(&train.y);
+    let (validate_noise, validate_settled) = residual::noise_floor_and_settled(&validate.y);
     let noise = (0.5 * (train_noise * train_noise + validate_noise * validate_noise)).sqrt();
-    // The noise-floor stop only where the floor is a measurement, not an upper bound.
-    let floor_settled =
-        residual::noise_floor_settled(&train.y) && residual::noise_floor_settled(&validate.y);
+    // The noise-floor stop only where the floor is a measurement, not an upper bound: no
+    // name needing `share` of the noise variance can be earned from `rmse`.
+    let floor_settled = train_settled && validate_settled;
+    let no_room =
+        |rmse: f64, share: f64| floor_settled && at_noise_floor(rmse, validate_noise, noise, share);
     let plain = Structure::new(&[], fixed_n, ctx);
     // With n free the kernel is several times slower: explore on the first samples only
     // (the polish, and the n = 1 refit that BIC compares it with, see the whole record).
@@ -1161,9 +1163,7 @@ pub fn diagnose_with_tests(
                 );
                 break;
             }
-            if floor_settled
-                && at_noise_floor(current.validate_rmse, validate_noise, noise, MIN_EXPLAINED)
-            {
+            if no_room(current.validate_rmse, MIN_EXPLAINED) {
                 search_stop = format!(
                     concat!(
                         "{}: the validation error is at the noise floor ({}x; a name must ",
@@ -1323,13 +1323,7 @@ pub fn diagnose_with_tests(
             // effect), started at the singles' fits.
             if chosen.is_none()
                 && current_summary.p_value <= 0.05
-                && !(floor_settled
-                    && at_noise_floor(
-                        current.validate_rmse,
-                        validate_noise,
-                        noise,
-                        2.0 * MIN_EXPLAINED,
-                    ))
+                && !no_room(current.validate_rmse, 2.0 * MIN_EXPLAINED)
             {
                 singles.sort_by(|a, b| a.1.total_cmp(&b.1));
                 let mut top: Vec<usize> = Vec::new();

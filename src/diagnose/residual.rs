@@ -18,21 +18,24 @@ use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
 /// robust (MAD) estimate; the smallest over `k = 2..=5` is the least contaminated by
 /// signal. Steps in the data are outliers to the MAD and barely move it.
 pub fn noise_floor(y: &[f64]) -> f64 {
-    let best = noise_by_order(y).into_iter().fold(f64::INFINITY, f64::min);
-    if best.is_finite() { best } else { 0.0 }
+    noise_floor_and_settled(y).0
 }
 
-/// Whether [`noise_floor`] has settled: its two highest orders agree within 3 %. Where the
-/// signal still contributes to the fifth differences (a drive with fast content sampled at
-/// a few hundred hertz), each order removes some of it and the estimate is high: on the
-/// blind proof's records (seeds 20261128-33) 20 of 720 validation records were over 5 %
-/// high, up to 3x, and 19 of them had orders four and five more than 3 % apart; of the
-/// 700 others, 87 % agree within 2 %. Content right at Nyquist passes for noise.
-pub fn noise_floor_settled(y: &[f64]) -> bool {
-    match noise_by_order(y)[..] {
+/// [`noise_floor`] and whether it has settled: its two highest orders agree within 3 %.
+/// Where the signal still contributes to the fifth differences (a drive with fast content
+/// sampled at a few hundred hertz), each order removes some of it and the estimate is
+/// high: on the blind proof's records (seeds 20261128-33) 20 of 720 validation records
+/// were over 5 % high, up to 3x, and 19 of them had orders four and five more than 3 %
+/// apart; of the 700 others, 87 % agree within 2 %. Content right at Nyquist passes for
+/// noise.
+pub fn noise_floor_and_settled(y: &[f64]) -> (f64, bool) {
+    let orders = noise_by_order(y);
+    let best = orders.iter().copied().fold(f64::INFINITY, f64::min);
+    let settled = match orders[..] {
         [.., a, b] if a > 0.0 && b > 0.0 => a.min(b) / a.max(b) >= 0.97,
         _ => false,
-    }
+    };
+    (if best.is_finite() { best } else { 0.0 }, settled)
 }
 
 /// The MAD estimate of the noise RMS from the `k`-th differences, `k = 2..=5` (orders
@@ -597,13 +600,18 @@ mod tests {
         (0..n).map(|_| sigma * standard_normal(&mut rng)).collect()
     }
 
+    /// Two slow tones plus white noise of RMS 3e-4 (seed 1): 4000 samples.
+    fn smooth_plus_noise() -> Vec<f64> {
+        let e = white(4000, 1, 3e-4);
+        e.iter()
+            .enumerate()
+            .map(|(k, e)| 0.3 * (k as f64 * 0.01).sin() + 0.2 * (k as f64 * 0.031).cos() + e)
+            .collect()
+    }
+
     #[test]
     fn noise_floor_of_smooth_signal_plus_noise() {
-        let n = 4000;
-        let e = white(n, 1, 3e-4);
-        let y: Vec<f64> = (0..n)
-            .map(|k| 0.3 * (k as f64 * 0.01).sin() + 0.2 * (k as f64 * 0.031).cos() + e[k])
-            .collect();
+        let y = smooth_plus_noise();
         let s = noise_floor(&y);
         assert!((s / 3e-4 - 1.0).abs() < 0.1, "{s}");
     }
@@ -612,20 +620,17 @@ mod tests {
     /// less than the one before: the floor comes out high and is not settled.
     #[test]
     fn the_noise_floor_is_settled_only_when_its_highest_orders_agree() {
-        let n = 4000;
-        let e = white(n, 1, 3e-4);
-        let smooth: Vec<f64> = (0..n)
-            .map(|k| 0.3 * (k as f64 * 0.01).sin() + 0.2 * (k as f64 * 0.031).cos() + e[k])
-            .collect();
-        assert!(noise_floor_settled(&smooth));
+        let settled = |y: &[f64]| noise_floor_and_settled(y).1;
+        let smooth = smooth_plus_noise();
+        assert!(settled(&smooth));
         let fast: Vec<f64> = smooth
             .iter()
             .enumerate()
             .map(|(k, y)| y + 5e-4 * (0.6 * std::f64::consts::PI * k as f64).sin())
             .collect();
         assert!(noise_floor(&fast) > 1.2 * 3e-4, "{}", noise_floor(&fast));
-        assert!(!noise_floor_settled(&fast));
-        assert!(!noise_floor_settled(&[1.0; 10]), "too short to tell");
+        assert!(!settled(&fast));
+        assert!(!settled(&[1.0; 10]), "too short to tell");
     }
 
     #[test]
