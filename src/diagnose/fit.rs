@@ -69,6 +69,7 @@ fn par_batch(obj: &impl Objective, points: &[f64], out: &mut [f64]) {
     points
         .par_chunks_exact(d)
         .zip(out.par_iter_mut())
+        .with_max_len(1)
         .for_each(|(p, o)| *o = obj.evaluate(p));
 }
 
@@ -212,6 +213,22 @@ pub fn fit(
     budget: Budget,
     seed: u64,
 ) -> Fitted {
+    fit_until(st, u, y, start, free, budget, seed, &mut |_| false)
+}
+
+/// [`fit`], asking `decided` after each polish round (with the best shape so far) whether
+/// the question the fit answers is settled; the rounds up to then are those of [`fit`].
+#[allow(clippy::too_many_arguments)]
+pub fn fit_until(
+    st: &Structure,
+    u: &Arc<Vec<f64>>,
+    y: &Arc<Vec<f64>>,
+    start: Option<&[f64]>,
+    free: Option<&[usize]>,
+    budget: Budget,
+    seed: u64,
+    decided: &mut dyn FnMut(&[f64]) -> bool,
+) -> Fitted {
     let obj = Arc::new(StructureObjective::new(st.clone(), u.clone(), y.clone()));
     let w = budget.global_window;
     let n = u.len().min(y.len());
@@ -333,7 +350,7 @@ pub fn fit(
             // The simplex starts at `best`, so its best is never worse.
             best = rec.best_x;
             step *= 0.3;
-            if converged {
+            if converged || decided(&best) {
                 break;
             }
         }
@@ -499,5 +516,44 @@ mod tests {
             "{}",
             polished.theta[q]
         );
+    }
+
+    /// A fit that is decided after its first polish round is exactly that round of the
+    /// full fit (same shape, same evaluations): stopping early changes nothing before it.
+    #[test]
+    fn a_fit_decided_after_one_round_is_the_full_fits_first_round() {
+        let dt = 1e-3;
+        let u: Vec<f64> = (0..2000)
+            .map(|k| 2.0 + 1.8 * (2.0 * std::f64::consts::PI * 3.0 * k as f64 * dt).sin())
+            .collect();
+        let ctx = Context::from_training(&u, dt);
+        let plain = Structure::new(&[], Some(1.0), ctx);
+        let truth = theta_with(&plain, &[("log10_s", -0.4), ("w", 0.6)]);
+        let (y, _) = plain.simulate(&truth, &[0.15, 0.01, 0.05], &u);
+        let start = theta_with(&plain, &[("log10_s", -0.2), ("w", 0.4)]);
+        let budget = |rounds| Budget {
+            global: 0,
+            swarm: 1,
+            polish: 150,
+            rounds,
+            global_window: 0,
+            screen: 0.0,
+        };
+        let (u, y) = (Arc::new(u), Arc::new(y));
+        let run = |rounds, decided: &mut dyn FnMut(&[f64]) -> bool| {
+            fit_until(&plain, &u, &y, Some(&start), None, budget(rounds), 3, decided)
+        };
+        let mut asked = 0;
+        let stopped = run(3, &mut |_| {
+            asked += 1;
+            true
+        });
+        let one = run(1, &mut |_| false);
+        let full = run(3, &mut |_| false);
+        assert_eq!(asked, 1);
+        assert_eq!(stopped.theta, one.theta);
+        assert_eq!(stopped.evaluations, one.evaluations);
+        assert!(full.evaluations > one.evaluations, "the full fit polishes on");
+        assert!(full.linear.cost <= one.linear.cost);
     }
 }
