@@ -541,7 +541,16 @@ mod tests {
         };
         let (u, y) = (Arc::new(u), Arc::new(y));
         let run = |rounds, decided: &mut dyn FnMut(&[f64]) -> bool| {
-            fit_until(&plain, &u, &y, Some(&start), None, budget(rounds), 3, decided)
+            fit_until(
+                &plain,
+                &u,
+                &y,
+                Some(&start),
+                None,
+                budget(rounds),
+                3,
+                decided,
+            )
         };
         let mut asked = 0;
         let stopped = run(3, &mut |_| {
@@ -553,7 +562,10 @@ mod tests {
         assert_eq!(asked, 1);
         assert_eq!(stopped.theta, one.theta);
         assert_eq!(stopped.evaluations, one.evaluations);
-        assert!(full.evaluations > one.evaluations, "the full fit polishes on");
+        assert!(
+            full.evaluations > one.evaluations,
+            "the full fit polishes on"
+        );
         assert!(full.linear.cost <= one.linear.cost);
     }
 }
