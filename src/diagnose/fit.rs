@@ -195,6 +195,17 @@ pub struct Fitted {
 }
 
 impl Fitted {
+    /// `st` at shape `theta` with its best linear coefficients on `(u, y)`, after
+    /// `evaluations` (the least-squares solve repeats one the optimizer has counted).
+    pub fn at(st: &Structure, theta: Vec<f64>, u: &[f64], y: &[f64], evaluations: u64) -> Self {
+        Fitted {
+            linear: st.fit_linear(&theta, u, y),
+            structure: st.clone(),
+            theta,
+            evaluations,
+        }
+    }
+
     /// Training RMSE (same units as y).
     pub fn rmse(&self, samples: usize) -> f64 {
         (2.0 * self.linear.cost / samples.max(1) as f64).sqrt()
@@ -355,13 +366,7 @@ pub fn fit_until(
             }
         }
     }
-    let linear = st.fit_linear(&best, u, y);
-    Fitted {
-        structure: st.clone(),
-        theta: best,
-        linear,
-        evaluations,
-    }
+    Fitted::at(st, best, u, y, evaluations)
 }
 
 /// What a run gained over its first evaluation (its start: seeded or the simplex's first
@@ -453,19 +458,25 @@ mod tests {
     use crate::physics::structure::tests::theta_with;
     use crate::physics::structure::{Context, Effect};
 
+    /// `n` samples at 1 kHz of a `hz` sine drive, the plain n = 1 Bouc-Wen structure on it,
+    /// the shape that made the record and the record (noiseless).
+    fn plain_sine_record(n: usize, hz: f64) -> (Vec<f64>, Structure, Vec<f64>, Vec<f64>) {
+        let dt = 1e-3;
+        let u: Vec<f64> = (0..n)
+            .map(|k| 2.0 + 1.8 * (2.0 * std::f64::consts::PI * hz * k as f64 * dt).sin())
+            .collect();
+        let plain = Structure::new(&[], Some(1.0), Context::from_training(&u, dt));
+        let theta = theta_with(&plain, &[("log10_s", -0.4), ("w", 0.6)]);
+        let (y, _) = plain.simulate(&theta, &[0.15, 0.01, 0.05], &u);
+        (u, plain, theta, y)
+    }
+
     /// A plain Bouc-Wen record (no asymmetry), and the nested asymmetry candidate started at
     /// the plain optimum: its own parameter cannot gain, so the screen skips the polish; on
     /// a record with asymmetry it gains and the polish runs.
     #[test]
     fn the_screen_skips_the_polish_only_when_the_search_gains_nothing() {
-        let dt = 1e-3;
-        let u: Vec<f64> = (0..3000)
-            .map(|k| 2.0 + 1.8 * (2.0 * std::f64::consts::PI * 2.0 * k as f64 * dt).sin())
-            .collect();
-        let ctx = Context::from_training(&u, dt);
-        let plain = Structure::new(&[], Some(1.0), ctx);
-        let theta = theta_with(&plain, &[("log10_s", -0.4), ("w", 0.6)]);
-        let (clean, _) = plain.simulate(&theta, &[0.15, 0.01, 0.05], &u);
+        let (u, plain, theta, clean) = plain_sine_record(3000, 2.0);
         let asym = plain.extended(Effect::Asymmetry);
         let mut th_a = plain.embed(&theta, &asym);
         let q = asym
@@ -522,14 +533,7 @@ mod tests {
     /// full fit (same shape, same evaluations): stopping early changes nothing before it.
     #[test]
     fn a_fit_decided_after_one_round_is_the_full_fits_first_round() {
-        let dt = 1e-3;
-        let u: Vec<f64> = (0..2000)
-            .map(|k| 2.0 + 1.8 * (2.0 * std::f64::consts::PI * 3.0 * k as f64 * dt).sin())
-            .collect();
-        let ctx = Context::from_training(&u, dt);
-        let plain = Structure::new(&[], Some(1.0), ctx);
-        let truth = theta_with(&plain, &[("log10_s", -0.4), ("w", 0.6)]);
-        let (y, _) = plain.simulate(&truth, &[0.15, 0.01, 0.05], &u);
+        let (u, plain, _, y) = plain_sine_record(2000, 3.0);
         let start = theta_with(&plain, &[("log10_s", -0.2), ("w", 0.4)]);
         let budget = |rounds| Budget {
             global: 0,

@@ -931,17 +931,6 @@ fn repolish(c: Evaluated, d: &Data, opts: &Options, salt: u64) -> (Evaluated, u6
     (better, used)
 }
 
-/// `st` at shape `theta` with its best linear coefficients on the training record (no
-/// evaluation counted: a least-squares solve at a point an optimizer has just evaluated).
-fn fitted_at(st: &Structure, theta: &[f64], d: &Data) -> Fitted {
-    Fitted {
-        structure: st.clone(),
-        theta: theta.to_vec(),
-        linear: st.fit_linear(theta, &d.ut, &d.yt),
-        evaluations: 0,
-    }
-}
-
 /// The report's line of a fitted proposal, not (yet) accepted.
 fn candidate(
     p: &Proposal,
@@ -1454,9 +1443,9 @@ pub fn diagnose_with_tests(
                         // After the first polish round, a refit that predicts the validation
                         // record 25 % worse than the band's top is not polished on: the later
                         // rounds moved such refits by at most a few percent (seed 20261134,
-                        // cases 89, 95 and 98), and a drop needs the top.
-                        let mut checked = 0;
-                        let mut first = true;
+                        // cases 89, 95 and 98), and a drop needs the top. The check is the
+                        // refit's evaluation when the fit stops there.
+                        let mut check: Option<Evaluated> = None;
                         let f = fit::fit_until(
                             &smaller,
                             &d.ut,
@@ -1466,17 +1455,28 @@ pub fn diagnose_with_tests(
                             repolish_budget(opts),
                             opts.seed.wrapping_add(100 + round as u64),
                             &mut |theta: &[f64]| {
-                                if !std::mem::take(&mut first) {
+                                if check.is_some() {
                                     return false;
                                 }
-                                let r = evaluate(fitted_at(&smaller, theta, &d), &d, opts);
-                                checked = r.fitted.evaluations;
-                                r.validate_rmse > CLEARLY_NEEDED * band[1]
+                                let at = Fitted::at(&smaller, theta.to_vec(), &d.ut, &d.yt, 0);
+                                let r = evaluate(at, &d, opts);
+                                let clear = r.validate_rmse > CLEARLY_NEEDED * band[1];
+                                check = Some(r);
+                                clear
                             },
                         );
-                        let mut r = evaluate(f, &d, opts);
-                        r.fitted.evaluations += checked;
-                        r
+                        match check {
+                            Some(mut r) if r.fitted.theta == f.theta => {
+                                r.fitted.evaluations += f.evaluations;
+                                r
+                            }
+                            checked => {
+                                let used = checked.map_or(0, |r| r.fitted.evaluations);
+                                let mut r = evaluate(f, &d, opts);
+                                r.fitted.evaluations += used;
+                                r
+                            }
+                        }
                     })
                     .collect();
                 let drop = removable
@@ -1755,14 +1755,7 @@ mod tests {
             Context::from_training(&u, dt),
             Placement::After,
         );
-        let theta = theta_with(&st, values);
-        let linear = st.fit_linear(&theta, &u, &u);
-        Fitted {
-            structure: st,
-            theta,
-            linear,
-            evaluations: 0,
-        }
+        Fitted::at(&st, theta_with(&st, values), &u, &u, 0)
     }
 
     fn fitted(form: Form, values: &[(&str, f64)], dt: f64) -> Fitted {
@@ -2096,13 +2089,7 @@ mod tests {
         assert_eq!(two(1.0, 0.05), Some(true), "one resonant mode suffices");
         assert_eq!(two(1.0, 0.6), Some(false));
         let plain = Structure::new(&[], Some(1.0), Context::from_training(&[0.0, 1.0], dt));
-        let theta = theta_with(&plain, &[]);
-        let f = Fitted {
-            linear: plain.fit_linear(&theta, &[0.0, 1.0], &[0.0, 1.0]),
-            theta,
-            structure: plain,
-            evaluations: 0,
-        };
+        let f = Fitted::at(&plain, theta_with(&plain, &[]), &[0.0, 1.0], &[0.0, 1.0], 0);
         assert_eq!(resonant(&f, dt), None);
     }
 }
