@@ -19,10 +19,24 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import generate as gen  # noqa: E402
+import oracle  # noqa: E402
 import score  # noqa: E402
 import simulate as sim  # noqa: E402
 
 PLAIN = {"de": 0.0103, "d0": 0.01, "alpha": 0.003, "beta": 0.03, "gamma": 0.015}
+
+
+class TestOracle(unittest.TestCase):
+    def test_classify(self):
+        truth = ["creep", "delay"]
+        free = {"bic": -1000.0, "validate_rmse": 1.0}
+        at = lambda bic, v: {"bic": bic, "validate_rmse": v}  # noqa: E731
+        self.assertEqual(oracle.classify(truth, ["creep"], at(-2000, 0.5), free), "not found alone")
+        self.assertEqual(oracle.classify(truth, ["delay", "creep"], at(-1011, 0.99), free), "truth better supported")
+        self.assertEqual(oracle.classify(truth, truth, at(-989, 1.01), free), "named set better supported")
+        # Criteria that disagree, or a BIC difference inside the margin: a tie.
+        self.assertEqual(oracle.classify(truth, truth, at(-1500, 1.2), free), "split")
+        self.assertEqual(oracle.classify(truth, truth, at(-1005, 0.9), free), "split")
 
 
 class TestWilson(unittest.TestCase):
