@@ -339,6 +339,25 @@ fn validation_residual(yv: &[f64], e: &Evaluated) -> Vec<f64> {
     yv.iter().zip(&e.out_v).map(|(y, m)| y - m).collect()
 }
 
+/// The validation test of the gate and of the backward step: how much `better` lowers the
+/// validation mean square below `worse` ([`gain_band`]), the fall itself, and whether it
+/// passes: significant and at least `needed`.
+fn validation_gain(
+    worse: &Evaluated,
+    better: &Evaluated,
+    yv: &[f64],
+    seed: u64,
+    needed: f64,
+) -> ([f64; 2], f64, bool) {
+    let explained = worse.validate_rmse.powi(2) - better.validate_rmse.powi(2);
+    let gain = gain_band(
+        &validation_residual(yv, worse),
+        &validation_residual(yv, better),
+        seed,
+    );
+    (gain, explained, gain[0] > 0.0 && explained >= needed)
+}
+
 /// BIC `N ln(SSE/N) + k ln N` of a training fit.
 fn bic(f: &Fitted, n: usize) -> f64 {
     let sse = (2.0 * f.linear.cost).max(1e-300);
@@ -902,13 +921,8 @@ fn judge(c: &Evaluated, parent: &Evaluated, g: &Gate) -> Verdict {
     } = *g;
     let delta = bic(&c.fitted, nt) - bic(&parent.fitted, nt);
     let bic_ok = delta < -margin;
-    let explained = parent.validate_rmse.powi(2) - c.validate_rmse.powi(2);
-    let gain = gain_band(
-        &validation_residual(yv, parent),
-        &validation_residual(yv, c),
-        seed,
-    );
-    let band_ok = gain[0] > 0.0 && explained >= min_explained * noise * noise;
+    let (gain, explained, band_ok) =
+        validation_gain(parent, c, yv, seed, min_explained * noise * noise);
     // The battery's score must fall, unless the candidate removes more than the noise
     // variance itself from the validation error: one of two concealed effects, fitted
     // alone, can reshape the residual (a mode without the rate-dependence beside it) so a
@@ -1542,26 +1556,17 @@ pub fn diagnose_with_tests(
                 // of the others now: a significant paired gain explaining the share of the
                 // noise variance a single must (the parent's band alone, as wide as its
                 // residual is uneven, dropped what the forward gate had just accepted).
-                let kept = |r: &Evaluated| {
-                    let explained = r.validate_rmse.powi(2) - current.validate_rmse.powi(2);
-                    let gain = gain_band(
-                        &validation_residual(&d.yv, r),
-                        &validation_residual(&d.yv, &current),
-                        opts.seed,
-                    );
-                    (
-                        gain,
-                        gain[0] > 0.0 && explained >= MIN_EXPLAINED * noise * noise,
-                    )
-                };
                 let drop = removable
                     .iter()
                     .zip(&reduced)
-                    .map(|(e, r)| (e, r, kept(r)))
-                    .filter(|(_, _, k)| !k.1)
+                    .map(|(e, r)| {
+                        let needed = MIN_EXPLAINED * noise * noise;
+                        (e, r, validation_gain(r, &current, &d.yv, opts.seed, needed))
+                    })
+                    .filter(|(_, _, k)| !k.2)
                     .min_by(|a, b| a.1.validate_ic.total_cmp(&b.1.validate_ic));
                 evaluations += reduced.iter().map(|r| r.fitted.evaluations).sum::<u64>();
-                let Some((&e, r, (gain, _))) = drop else {
+                let Some((&e, r, (gain, _, _))) = drop else {
                     break;
                 };
                 let fmt = |x: f64| crate::report::table::sig(x, 3);
@@ -2145,8 +2150,8 @@ mod tests {
     /// The paired gain band sees what the parent's own band hides: on a record whose
     /// noise is three times larger in its second half, a candidate removing a slow error of
     /// 0.4 sigma RMS (16 % of the noise variance) lands inside the parent's RMSE band but its
-    /// gain band lies above zero; a candidate equal to the parent straddles zero, one that
-    /// adds the error lies below.
+    /// gain band lies above zero; a candidate equal to the parent gives [0, 0], one that adds
+    /// the error lies below.
     #[test]
     fn the_paired_gain_band_finds_a_gain_inside_the_parents_band() {
         let n = 8000;
