@@ -2,8 +2,9 @@
 //! out, and the better model, with evidence.
 //!
 //! 1. **Baseline.** The plain Bouc-Wen model ([`Structure`] without extensions) is fitted to
-//!    the training recording: PSO over the loop shape, then Nelder-Mead polish, through the
-//!    harness (evaluations counted by the evaluator), linear coefficients by least squares.
+//!    the training recording: PSO over the loop shape, then a Levenberg-Marquardt polish
+//!    from the best points it found, through the harness (evaluations counted by the
+//!    evaluator), linear coefficients by least squares.
 //! 2. **Noise floor** from the data alone ([`residual::noise_floor`]).
 //! 3. **Locate** the validation residual in time, in the loop plane and in frequency
 //!    ([`residual::locate`]).
@@ -14,7 +15,7 @@
 //!    scores at least as large, so the false-alarm rate of "structure left" is known.
 //! 5. **Name** by nested refits: each extension not yet in the model is added at its
 //!    neutral value (the parent model exactly) and refitted (PSO over its own parameters,
-//!    then Nelder-Mead over all). A candidate is accepted only if BIC on the training data
+//!    then Levenberg-Marquardt over all). A candidate is accepted only if BIC on the training data
 //!    improves by more than [`Options::bic_margin`], its validation RMSE falls below the
 //!    parent's 95 % band (moving-block bootstrap of the parent's validation residual), and
 //!    the residual battery's score falls. The best such candidate (training ΔBIC plus its
@@ -95,7 +96,7 @@ impl Default for Options {
                 global: 1500,
                 swarm: 30,
                 polish: 800,
-                rounds: 3,
+                starts: 3,
                 global_window: 0,
                 screen: 0.0,
             },
@@ -103,7 +104,7 @@ impl Default for Options {
                 global: 300,
                 swarm: 15,
                 polish: 700,
-                rounds: 2,
+                starts: 3,
                 global_window: 0,
                 screen: 2.0,
             },
@@ -111,7 +112,7 @@ impl Default for Options {
                 global: 1500,
                 swarm: 30,
                 polish: 700,
-                rounds: 2,
+                starts: 3,
                 global_window: 4096,
                 screen: 0.0,
             },
@@ -518,7 +519,7 @@ fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> (Vec
                     global: 0,
                     swarm: 1,
                     polish: opts.candidate_budget.polish / 2,
-                    rounds: 1,
+                    starts: 1,
                     global_window: 0,
                     screen: 0.0,
                 },
@@ -839,10 +840,6 @@ struct Gate<'a> {
 /// narrow enough to pass passengers that soak up a form's small mismatch.
 const MIN_EXPLAINED: f64 = 0.15;
 
-/// A backward refit predicting the validation record this much worse than the model's
-/// band top after its first polish round keeps its effect: no further polish.
-const CLEARLY_NEEDED: f64 = 1.25;
-
 /// Whether a model's validation RMSE is too close to the noise floor for a candidate that
 /// must remove `share` of the noise variance (`noise`, pooled over both records) from the
 /// validation mean square: from here it would leave less than the validation record's own
@@ -956,13 +953,13 @@ fn judge(c: &Evaluated, parent: &Evaluated, g: &Gate) -> Verdict {
     }
 }
 
-/// A polish of every parameter to convergence (the stall stop ends it early).
+/// A polish of every parameter to convergence (its convergence test ends it early).
 fn repolish_budget(opts: &Options) -> Budget {
     Budget {
         global: 0,
         swarm: 1,
         polish: 2 * opts.candidate_budget.polish,
-        rounds: 4,
+        starts: 1,
         global_window: 0,
         screen: 0.0,
     }
@@ -1506,20 +1503,13 @@ pub fn diagnose_with_tests(
                     .filter(|e| left_out.iter().any(|n| n == e.name()))
                     .filter(|e| !(*e == Effect::Dynamics && st.placement() == Placement::Feedback))
                     .collect();
-                let band = current_summary.validate_band;
                 let reduced: Vec<Evaluated> = removable
                     .par_iter()
                     .with_max_len(1)
                     .map(|&e| {
                         let smaller = st.without(e);
                         let start = st.embed(&current.fitted.theta, &smaller);
-                        // After the first polish round, a refit that predicts the validation
-                        // record 25 % worse than the band's top is not polished on: the later
-                        // rounds moved such refits by at most a few percent (seed 20261134,
-                        // cases 89, 95 and 98), and a drop needs the top. The check is the
-                        // refit's evaluation when the fit stops there.
-                        let mut check: Option<Evaluated> = None;
-                        let f = fit::fit_until(
+                        let f = fit::fit(
                             &smaller,
                             &d.ut,
                             &d.yt,
@@ -1527,29 +1517,8 @@ pub fn diagnose_with_tests(
                             None,
                             repolish_budget(opts),
                             opts.seed.wrapping_add(100 + round as u64),
-                            &mut |theta: &[f64]| {
-                                if check.is_some() {
-                                    return false;
-                                }
-                                let at = Fitted::at(&smaller, theta.to_vec(), &d.ut, &d.yt, 0);
-                                let r = evaluate(at, &d, opts);
-                                let clear = r.validate_rmse > CLEARLY_NEEDED * band[1];
-                                check = Some(r);
-                                clear
-                            },
                         );
-                        match check {
-                            Some(mut r) if r.fitted.theta == f.theta => {
-                                r.fitted.evaluations += f.evaluations;
-                                r
-                            }
-                            checked => {
-                                let used = checked.map_or(0, |r| r.fitted.evaluations);
-                                let mut r = evaluate(f, &d, opts);
-                                r.fitted.evaluations += used;
-                                r
-                            }
-                        }
+                        evaluate(f, &d, opts)
                     })
                     .collect();
                 // An effect stays only if it would pass the gate's validation test on top

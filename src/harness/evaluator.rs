@@ -258,6 +258,30 @@ impl Evaluator {
         Some(f)
     }
 
+    /// Costs and residuals ([`Objective::residuals`]) of the row-major `points`, each
+    /// counted as one evaluation, as many as the budget allows (in order, until the stop
+    /// value is reached); `None` if the objective has no residuals.
+    pub fn evaluate_residuals_batch(&mut self, points: &[f64]) -> Option<Vec<(f64, Vec<f64>)>> {
+        let d = self.dim();
+        let k = (self.remaining() as usize).min(points.len() / d.max(1));
+        let mut out = self.objective.residuals_batch(&points[..k * d])?;
+        let mut values: Vec<f64> = out.iter().map(|(c, _)| sanitize(*c)).collect();
+        let counted = self.record_all(&points[..k * d], &mut values);
+        out.truncate(counted);
+        for ((c, r), v) in out.iter_mut().zip(values) {
+            *c = v;
+            if !v.is_finite() {
+                r.clear();
+            }
+        }
+        Some(out)
+    }
+
+    /// Ends the trial early: a local search has converged (its budget was an upper bound).
+    pub fn converged(&mut self) {
+        self.stopped = true;
+    }
+
     /// Reserves up to `n` evaluations for evaluation elsewhere (another thread). The result
     /// must come back through [`Evaluator::commit`]; grants are counted at commit, in the
     /// order the caller commits them.

@@ -140,6 +140,25 @@ pub trait Objective: Send + Sync {
         None
     }
 
+    /// Cost `½ Σ rᵢ²` with the residuals `r` behind it, for least-squares objectives (a
+    /// model fitted to a recording), so a Gauss-Newton method can build a Jacobian. `None`
+    /// where the objective is not a sum of squares; where it penalises `x` the cost is the
+    /// penalty and `r` is left empty.
+    fn residuals(&self, _x: &[f64], _r: &mut Vec<f64>) -> Option<f64> {
+        None
+    }
+
+    /// [`Objective::residuals`] of row-major `points`, one `(cost, residuals)` per point.
+    fn residuals_batch(&self, points: &[f64]) -> Option<Vec<(f64, Vec<f64>)>> {
+        points
+            .chunks_exact(self.dim())
+            .map(|p| {
+                let mut r = Vec::new();
+                self.residuals(p, &mut r).map(|c| (c, r))
+            })
+            .collect()
+    }
+
     /// Whether [`Objective::value_and_gradient`] is implemented.
     fn has_gradient(&self) -> bool {
         false

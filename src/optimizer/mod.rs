@@ -7,6 +7,7 @@ pub mod de;
 pub mod ga;
 pub mod gradient;
 pub mod lbfgs;
+pub mod levenberg_marquardt;
 pub mod msga;
 pub mod nelder_mead;
 pub mod operators;

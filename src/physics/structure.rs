@@ -1479,6 +1479,18 @@ impl Structure {
         y: &[f64],
         proj: &Projection,
     ) -> LinearFit {
+        self.fit_linear_residuals(theta, u, y, proj).0
+    }
+
+    /// [`Self::fit_linear_projected`] and its residuals `y - model` (empty where the shape
+    /// is unstable or the cost capped): the projected solve's own, at no extra cost.
+    pub fn fit_linear_residuals(
+        &self,
+        theta: &[f64],
+        u: &[f64],
+        y: &[f64],
+        proj: &Projection,
+    ) -> (LinearFit, Vec<f64>) {
         let len = u.len().min(y.len());
         let (u, y) = (&u[..len], &y[..len]);
         debug_assert_eq!(proj.y_perp.len(), len);
@@ -1486,7 +1498,7 @@ impl Structure {
         let (varying, status) = self.varying_columns(theta, u);
         let ncoef = varying.len() + proj.fixed_at.len();
         if let Status::Unstable { at } = status {
-            return LinearFit::unstable(ncoef, cap, at, len);
+            return (LinearFit::unstable(ncoef, cap, at, len), Vec::new());
         }
         let fixed_at = &proj.fixed_at;
         let varying_at = |j: usize| j - fixed_at.iter().filter(|&&f| f < j).count();
@@ -1495,9 +1507,14 @@ impl Structure {
             .into_iter()
             .map(|(j, b)| (varying_at(j), b))
             .collect();
-        let (coef, j) = proj.solve(varying, &bounds);
-        let cost = if j.is_finite() { j.min(cap) } else { cap };
-        LinearFit { coef, cost, status }
+        let (coef, j, mut e) = proj.solve(varying, &bounds);
+        let cost = if j.is_finite() && j < cap {
+            j
+        } else {
+            e.clear();
+            cap
+        };
+        (LinearFit { coef, cost, status }, e)
     }
 
     /// Model output for input `u` with shape `theta` and linear coefficients `coef` (from
@@ -1894,8 +1911,13 @@ impl Projection {
 
     /// Coefficients (in coefficient order) and `Σ e²/2` for the shape-dependent columns
     /// `varying` (in their order, without the fixed ones).
-    /// `bounds`: (index in `varying`, largest magnitude) of bounded coefficients.
-    fn solve(&self, mut varying: Vec<Vec<f64>>, bounds: &[(usize, f64)]) -> (Vec<f64>, f64) {
+    /// `bounds`: (index in `varying`, largest magnitude) of bounded coefficients. Also the
+    /// residuals: off the fixed columns' span, which the fixed coefficients absorb exactly.
+    fn solve(
+        &self,
+        mut varying: Vec<Vec<f64>>,
+        bounds: &[(usize, f64)],
+    ) -> (Vec<f64>, f64, Vec<f64>) {
         let m = self.fixed.len();
         let n = self.y_perp.len();
         // Hᵀ V, and V with the fixed columns projected out.
@@ -1941,7 +1963,7 @@ impl Projection {
                 vi.next().unwrap_or(0.0)
             });
         }
-        (coef, cost)
+        (coef, cost, e)
     }
 }
 
@@ -3099,6 +3121,21 @@ pub(crate) mod tests {
                     st.label()
                 );
             }
+            // The residuals a Gauss-Newton polish linearises are the fit's own: y minus
+            // every column (the fixed ones included) times its coefficient.
+            let (with_r, r) = st.fit_linear_residuals(&theta, &u, &y, &st.projection(&y));
+            assert_eq!(with_r.cost.to_bits(), fit.cost.to_bits());
+            assert_eq!(r.len(), y.len());
+            let scale = y.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            for (k, rk) in r.iter().enumerate() {
+                let m: f64 = cols.iter().zip(&fit.coef).map(|(c, b)| c[k] * b).sum();
+                assert!(
+                    (rk - (y[k] - m)).abs() < 1e-9 * scale,
+                    "{}: sample {k}",
+                    st.label()
+                );
+            }
+            assert!((0.5 * dot(&r, &r) / fit.cost - 1.0).abs() < 1e-12);
         }
     }
 
