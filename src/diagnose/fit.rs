@@ -6,7 +6,7 @@
 
 use crate::harness::{TrialRecord, TrialSeed, TrialSpec, run_trial};
 use crate::objective::{Bounds, Objective};
-use crate::optimizer::levenberg_marquardt::LevenbergMarquardt;
+use crate::optimizer::levenberg_marquardt::LevenbergMarquardtFrom;
 use crate::optimizer::nelder_mead::NelderMead;
 use crate::optimizer::pso::PsoConfig;
 use crate::optimizer::{Optimizer, OptimizerConfig};
@@ -174,13 +174,11 @@ impl Optimizer for SeededRun {
     }
 }
 
-/// A local search from a given point: Nelder-Mead, or Levenberg-Marquardt with the
-/// relative convergence tolerance given.
+/// Nelder-Mead from a given point.
 #[derive(Debug)]
 struct PolishFrom {
     x0: Vec<f64>,
     step: f64,
-    gauss_newton: Option<f64>,
 }
 
 impl OptimizerConfig for PolishFrom {
@@ -189,18 +187,11 @@ impl OptimizerConfig for PolishFrom {
     }
 
     fn start(&self, bounds: &Bounds, _budget: u64, _seed: &TrialSeed) -> Box<dyn Optimizer> {
-        match self.gauss_newton {
-            Some(tol) => Box::new(LevenbergMarquardt::new(
-                bounds.clone(),
-                self.x0.clone(),
-                tol,
-            )),
-            None => Box::new(NelderMead::new(
-                bounds.clone(),
-                self.step,
-                Some(self.x0.clone()),
-            )),
-        }
+        Box::new(NelderMead::new(
+            bounds.clone(),
+            self.step,
+            Some(self.x0.clone()),
+        ))
     }
 }
 
@@ -388,12 +379,11 @@ pub fn fit(
                 optimizer_id: "levenberg-marquardt",
                 trial: k,
                 objective: obj.clone(),
-                optimizer: &PolishFrom {
-                    x0,
-                    step: 0.05,
+                optimizer: &LevenbergMarquardtFrom {
+                    start: x0,
                     // Converged: two steps in a row moved BIC (N ln SSE) by less than 0.1
                     // each, far below any decision margin.
-                    gauss_newton: Some(0.1 / n.max(1) as f64),
+                    rel_tol: 0.1 / n.max(1) as f64,
                 },
                 budget: budget.polish,
                 stop_value: None,
@@ -527,7 +517,6 @@ pub fn initial_state_for(
         optimizer: &PolishFrom {
             x0: vec![0.0],
             step: 0.1,
-            gauss_newton: None,
         },
         budget,
         stop_value: None,

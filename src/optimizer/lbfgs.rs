@@ -17,7 +17,7 @@
 //! descent direction) it restarts from a uniform random point of the box, so a standalone
 //! run spends its whole budget as multistart L-BFGS; the evaluator keeps the best point.
 
-use super::{Optimizer, OptimizerConfig};
+use super::{Optimizer, OptimizerConfig, dot};
 use crate::harness::{Evaluator, TrialSeed};
 use crate::objective::Bounds;
 use rand_chacha::ChaCha8Rng;
@@ -83,10 +83,6 @@ pub struct Lbfgs {
     /// Gradient at x (None until computed for the current point).
     g: Option<Vec<f64>>,
     memory: VecDeque<(Vec<f64>, Vec<f64>, f64)>,
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 impl Lbfgs {

@@ -9,14 +9,35 @@
 //!
 //! [`Objective::residuals`]: crate::objective::Objective::residuals
 
-use super::Optimizer;
-use crate::harness::Evaluator;
+use super::{Optimizer, OptimizerConfig, dot};
+use crate::harness::{Evaluator, TrialSeed};
 use crate::objective::Bounds;
 
 /// Forward-difference step, as a fraction of each interval's width.
 const FD_STEP: f64 = 1e-6;
 /// Damping at the start, relative to the normal matrix's diagonal.
 const LAMBDA0: f64 = 1e-3;
+
+/// A polish from a given point with a given tolerance ([`LevenbergMarquardt::new`]).
+#[derive(Debug)]
+pub struct LevenbergMarquardtFrom {
+    pub start: Vec<f64>,
+    pub rel_tol: f64,
+}
+
+impl OptimizerConfig for LevenbergMarquardtFrom {
+    fn batch_size(&self) -> usize {
+        1
+    }
+
+    fn start(&self, bounds: &Bounds, _budget: u64, _seed: &TrialSeed) -> Box<dyn Optimizer> {
+        Box::new(LevenbergMarquardt::new(
+            bounds.clone(),
+            self.start.clone(),
+            self.rel_tol,
+        ))
+    }
+}
 
 /// The search state.
 pub struct LevenbergMarquardt {
@@ -221,10 +242,6 @@ impl Optimizer for LevenbergMarquardt {
     }
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
 /// Solves `S z = b` for symmetric positive definite `S` (overwritten by its Cholesky
 /// factor); `None` if `S` is not numerically positive definite.
 fn cholesky_solve(s: &mut [Vec<f64>], b: &[f64]) -> Option<Vec<f64>> {
@@ -266,9 +283,8 @@ fn cholesky_solve(s: &mut [Vec<f64>], b: &[f64]) -> Option<Vec<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::harness::{Stall, TrialSeed, TrialSpec, run_trial};
+    use crate::harness::{Stall, TrialSpec, run_trial};
     use crate::objective::Objective;
-    use crate::optimizer::OptimizerConfig;
     use std::sync::Arc;
     use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -320,29 +336,16 @@ mod tests {
         }
     }
 
-    #[derive(Debug)]
-    struct From(Vec<f64>);
-
-    impl OptimizerConfig for From {
-        fn batch_size(&self) -> usize {
-            1
-        }
-        fn start(&self, bounds: &Bounds, _: u64, _: &TrialSeed) -> Box<dyn Optimizer> {
-            Box::new(LevenbergMarquardt::new(
-                bounds.clone(),
-                self.0.clone(),
-                1e-12,
-            ))
-        }
-    }
-
     fn solve(obj: Arc<Decay>, start: &[f64], budget: u64) -> crate::harness::TrialRecord {
         run_trial(TrialSpec {
             objective_id: "decay",
             optimizer_id: "levenberg-marquardt",
             trial: 0,
             objective: obj,
-            optimizer: &From(start.to_vec()),
+            optimizer: &LevenbergMarquardtFrom {
+                start: start.to_vec(),
+                rel_tol: 1e-12,
+            },
             budget,
             stop_value: None,
             stall: None::<Stall>,

@@ -18,6 +18,11 @@ use crate::harness::{Evaluator, TrialSeed};
 use crate::objective::Bounds;
 use std::fmt;
 
+/// `Σ aᵢ bᵢ`, in order (the local searches' inner products).
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
 /// The running state of one optimizer in one trial.
 pub trait Optimizer: Send {
     /// One iteration (generation). Must spend at least one evaluation unless
