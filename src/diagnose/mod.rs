@@ -726,15 +726,23 @@ fn drift_first(creep: [f64; 2], drift: [f64; 2], margin: f64) -> bool {
     drift[0] <= creep[0] + margin && drift[1] <= creep[1] + margin
 }
 
-/// Creep and a drift of each record stand in for each other on one record (a slow creep
-/// is a drift the input drives; a settling drift is creep's initial-state decay), and
-/// whichever was named first shapes every later round: a drift soaks up the mismatch of a
-/// creep named after it, a creep named for a drift stays beside the rate-dependence that
-/// followed. The pair `(named, partner)`: drop `named` and search `partner` (every form,
-/// or its own form again when the model has it) on the rest, everything polished after.
-const EXCHANGES: [(Effect, Effect); 2] = [
+/// Effects that stand in for each other on one record, so whichever was named first shapes
+/// every later round. Creep and a drift of each record: a slow creep is a drift the input
+/// drives, a settling drift is creep's initial-state decay; a drift soaks up the mismatch
+/// of a creep named after it, a creep named for a drift stays beside the rate-dependence
+/// that followed. Saturation and asymmetry: both bend the loop's ends, one symmetrically;
+/// a saturation named for an asymmetric gain leaves the asymmetry's other half to a
+/// second effect. A delay and an input lag: both make the response late, one by a pure
+/// shift, one with a first-order smoothing. The pair `(named, partner)`: drop `named` and
+/// search `partner` (every form, or its own form again when the model has it) on the
+/// rest, everything polished after.
+const EXCHANGES: [(Effect, Effect); 6] = [
     (Effect::OffsetDrift, Effect::Creep),
     (Effect::Creep, Effect::OffsetDrift),
+    (Effect::Asymmetry, Effect::Saturation),
+    (Effect::Saturation, Effect::Asymmetry),
+    (Effect::InputLag, Effect::Delay),
+    (Effect::Delay, Effect::InputLag),
 ];
 
 /// The exchanges of [`EXCHANGES`] open to `current` (its effects named in `named`, the
@@ -1565,7 +1573,7 @@ pub fn diagnose_with_tests(
                 current_summary = summary(&current, &d, &boot, opts.seed);
             }
         }
-        // Once the search ends: the model with a named creep or drift exchanged for the other
+        // Once the search ends: the model with a named effect exchanged for its stand-in
         // (see [`EXCHANGES`]) is taken when all the data support it better by the margin,
         // neither record worse by more than it, and it predicts the validation record inside
         // the model's band; then the search goes on from it.
@@ -1620,7 +1628,17 @@ pub fn diagnose_with_tests(
             ));
         }
         let Some((i, _)) = best else {
-            exchange_note = format!("; round {round} tried exchanging creep and drift: none taken");
+            let mut pairs: Vec<String> = Vec::new();
+            for (out, p, _) in &tried {
+                let pair = format!("{} for {}", out.name(), p.parts[0].0.name());
+                if !pairs.contains(&pair) {
+                    pairs.push(pair);
+                }
+            }
+            exchange_note = format!(
+                "; round {round} tried exchanging {}: none taken",
+                pairs.join(", ")
+            );
             break;
         };
         let (out, p, c) = &tried[i];
@@ -2002,6 +2020,125 @@ mod tests {
                 exchanged,
                 "creep {creep}: drift model validation RMSE {} band {band:?}, exchanges [ΔBIC, Δvalidation, sum] {:?} validation RMSE {:?}",
                 with_drift.validate_rmse,
+                gates.iter().map(|g| g.0).collect::<Vec<_>>(),
+                tried.iter().map(|t| t.2.validate_rmse).collect::<Vec<_>>()
+            );
+        }
+    }
+
+    /// The other exchanges of [`EXCHANGES`], on records written here with `BoucWenState`
+    /// (n = 1) after a map of the drive: an even-order term (`v + 0.05 v²`) fitted with a
+    /// saturation is exchanged for asymmetry, a soft saturation (`1.3 tanh(v / 1.3)`) is
+    /// kept; a first-order lag of the drive (8 ms) fitted with a delay is exchanged for the
+    /// input lag, a transport delay (8 samples) is kept.
+    #[test]
+    fn a_saturation_or_delay_standing_in_for_its_partner_is_exchanged_and_a_true_one_kept() {
+        let (dt, n, sigma) = (1e-3, 6000, 1e-3);
+        let bipolar = |rate: f64, amp: f64| -> Vec<f64> {
+            triangle_chirp(n, dt, rate, 2.0)
+                .iter()
+                .map(|x| amp * (x - 1.05))
+                .collect()
+        };
+        let (ut, uv) = (bipolar(1.0, 2.3), bipolar(0.6, 1.9));
+        let record = |u: &[f64], map: &dyn Fn(&[f64]) -> Vec<f64>, salt: u64| -> Vec<f64> {
+            use crate::physics::bouc_wen::{BoucWenParams, BoucWenState};
+            let p = BoucWenParams {
+                d_e: 0.17,
+                alpha: 0.05,
+                beta: 0.45,
+                gamma: 0.2,
+                n: 1.0,
+                d0: 0.0,
+            };
+            let v = map(u);
+            let mut bw = BoucWenState::new(v[0]);
+            let mut rng = TrialSeed::derive(salt, "exchange-map", "noise", 0).rng(0);
+            v.iter()
+                .map(|&x| bw.step(&p, x) + sigma * standard_normal(&mut rng))
+                .collect()
+        };
+        let even = |u: &[f64]| u.iter().map(|v| v + 0.05 * v * v).collect::<Vec<f64>>();
+        let soft = |u: &[f64]| {
+            u.iter()
+                .map(|v| 1.3 * (v / 1.3).tanh())
+                .collect::<Vec<f64>>()
+        };
+        let lag = |u: &[f64]| {
+            let a = 1.0 - (-dt / 8e-3f64).exp();
+            let mut x = u[0];
+            u.iter()
+                .map(|&v| {
+                    x += a * (v - x);
+                    x
+                })
+                .collect::<Vec<f64>>()
+        };
+        let delay = |u: &[f64]| {
+            (0..u.len())
+                .map(|k| u[k.saturating_sub(8)])
+                .collect::<Vec<f64>>()
+        };
+        type Map<'a> = &'a dyn Fn(&[f64]) -> Vec<f64>;
+        let cases: [(Map, Effect, Form, bool); 4] = [
+            (&even, Effect::Saturation, Form::Smooth, true),
+            (&soft, Effect::Saturation, Form::Smooth, false),
+            (&lag, Effect::Delay, Form::Transport, true),
+            (&delay, Effect::Delay, Form::Transport, false),
+        ];
+        let opts = Options::default();
+        for (map, named_effect, form, exchanged) in cases {
+            let data = Data {
+                yt: Arc::new(record(&ut, map, 1)),
+                yv: record(&uv, map, 2),
+                ut: Arc::new(ut.clone()),
+                uv: uv.clone(),
+                periodic: false,
+            };
+            let plain = Structure::new(&[], Some(1.0), Context::from_training(&ut, dt));
+            let base = baseline_fit(&plain, &data, &opts);
+            let named_fit = Proposal {
+                parts: vec![(named_effect, form)],
+                placement: Placement::After,
+            };
+            let with_named = fit_proposal(
+                &base.structure,
+                &base.theta,
+                &named_fit,
+                &[],
+                &data,
+                &opts,
+                1,
+            );
+            let ev: Vec<f64> = data
+                .yv
+                .iter()
+                .zip(&with_named.out_v)
+                .map(|(a, b)| a - b)
+                .collect();
+            let band = rmse_band(&ev, 1, "exchange");
+            let named = vec![named_effect.name().to_string()];
+            let tried = exchanges(&with_named.fitted, &named, &data, &opts, 1);
+            let partner = EXCHANGES
+                .iter()
+                .find(|(e, _)| *e == named_effect)
+                .map(|p| p.1)
+                .unwrap();
+            assert_eq!(tried.len(), partner.forms().len());
+            assert!(tried.iter().all(
+                |(out, p, _)| *out == named_effect && p.parts == vec![(partner, p.parts[0].1)]
+            ));
+            let gates: Vec<([f64; 3], bool)> = tried
+                .iter()
+                .map(|(_, _, c)| exchange_gate(c, &with_named, band, n, opts.bic_margin))
+                .collect();
+            assert_eq!(
+                gates.iter().any(|g| g.1),
+                exchanged,
+                "{} for {}: validation RMSE {} band {band:?}, exchanges [ΔBIC, Δvalidation, sum] {:?} validation RMSE {:?}",
+                named_effect.name(),
+                partner.name(),
+                with_named.validate_rmse,
                 gates.iter().map(|g| g.0).collect::<Vec<_>>(),
                 tried.iter().map(|t| t.2.validate_rmse).collect::<Vec<_>>()
             );
