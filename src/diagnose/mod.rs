@@ -733,7 +733,7 @@ fn drift_first(creep: [f64; 2], drift: [f64; 2], margin: f64) -> bool {
 /// that followed. Saturation and asymmetry: both bend the loop's ends, one symmetrically;
 /// a saturation named for an asymmetric gain leaves the asymmetry's other half to a
 /// second effect. A delay and an input lag: both make the response late, one by a pure
-/// shift, one with a first-order smoothing. The pair `(named, partner)`: drop `named` and
+/// shift, one through a low-pass. The pair `(named, partner)`: drop `named` and
 /// search `partner` (every form, or its own form again when the model has it) on the
 /// rest, everything polished after.
 const EXCHANGES: [(Effect, Effect); 6] = [
