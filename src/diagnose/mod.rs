@@ -745,12 +745,19 @@ const EXCHANGES: [(Effect, Effect); 6] = [
     (Effect::Delay, Effect::InputLag),
 ];
 
+/// Exchange phases taken at most: after one is taken (and the search has gone on from
+/// it), the pairs left are judged again on the new model: on seed 20261141 case 94 the
+/// creep-for-drift exchange was judged against the model still holding the delay that the
+/// same phase exchanged for an input lag, and failed there (validation evidence 72 worse).
+const MAX_EXCHANGES: usize = 3;
+
 /// The exchanges of [`EXCHANGES`] open to `current` (its effects named in `named`, the
-/// partner among the effects searched): per exchange the effect dropped, the proposal and
+/// partner among the effects searched, the pair not `taken` before either way round): per exchange the effect dropped, the proposal and
 /// its fit on the rest.
 fn exchanges(
     current: &Fitted,
     named: &[String],
+    taken: &[(Effect, Effect)],
     d: &Data,
     opts: &Options,
     round: usize,
@@ -760,7 +767,12 @@ fn exchanges(
         .iter()
         .copied()
         .filter(|(e, partner)| {
-            st.has(*e) && named.iter().any(|n| n == e.name()) && opts.effects.contains(partner)
+            st.has(*e)
+                && named.iter().any(|n| n == e.name())
+                && opts.effects.contains(partner)
+                && !taken
+                    .iter()
+                    .any(|t| *t == (*e, *partner) || *t == (*partner, *e))
         })
         .collect();
     // The rest starts where the current model has it: the partner's search polishes every
@@ -1221,7 +1233,8 @@ pub fn diagnose_with_tests(
     let threshold = boot.last().copied().unwrap_or(1.0).max(1.0);
     let mut round = 0;
     let mut search_stop = format!("{} rounds, the most allowed", opts.max_rounds);
-    let mut exchanged = false;
+    // Exchanges taken so far, each pair at most once (either way round).
+    let mut exchanged: Vec<(Effect, Effect)> = Vec::new();
     let mut exchange_note = String::new();
     loop {
         while round < opts.max_rounds {
@@ -1577,11 +1590,10 @@ pub fn diagnose_with_tests(
         // (see [`EXCHANGES`]) is taken when all the data support it better by the margin,
         // neither record worse by more than it, and it predicts the validation record inside
         // the model's band; then the search goes on from it.
-        if exchanged {
+        if exchanged.len() >= MAX_EXCHANGES {
             break;
         }
-        exchanged = true;
-        let tried = exchanges(&current.fitted, &left_out, &d, opts, round + 1);
+        let tried = exchanges(&current.fitted, &left_out, &exchanged, &d, opts, round + 1);
         if tried.is_empty() {
             break;
         }
@@ -1635,13 +1647,14 @@ pub fn diagnose_with_tests(
                     pairs.push(pair);
                 }
             }
-            exchange_note = format!(
+            exchange_note.push_str(&format!(
                 "; round {round} tried exchanging {}: none taken",
                 pairs.join(", ")
-            );
+            ));
             break;
         };
         let (out, p, c) = &tried[i];
+        exchanged.push((*out, p.parts[0].0));
         candidates[at[i]].accepted = true;
         candidates[at[i]].notes.push(format!(
             "taken in place of {}: all the data support it better",
@@ -1670,7 +1683,7 @@ pub fn diagnose_with_tests(
         (current, used) = repolish(c.clone(), &d, opts, 200 + round as u64);
         evaluations += used;
         current_summary = summary(&current, &d, &boot, opts.seed);
-        exchange_note = format!(
+        exchange_note.push_str(&format!(
             "; round {round} exchanged {} for {}{}",
             out.name(),
             p.name(),
@@ -1679,7 +1692,7 @@ pub fn diagnose_with_tests(
             } else {
                 ""
             }
-        );
+        ));
     }
     search_stop.push_str(&exchange_note);
     let free_runs: Vec<FreeRun> = tests
@@ -2000,7 +2013,16 @@ mod tests {
                 .collect();
             let band = rmse_band(&ev, 1, "exchange");
             let named = vec!["offset-drift".to_string()];
-            let tried = exchanges(&with_drift.fitted, &named, &data, &opts, 1);
+            let tried = exchanges(&with_drift.fitted, &named, &[], &data, &opts, 1);
+            // A pair exchanged before, either way round, is not offered again.
+            for taken in [
+                (Effect::OffsetDrift, Effect::Creep),
+                (Effect::Creep, Effect::OffsetDrift),
+            ] {
+                assert!(
+                    exchanges(&with_drift.fitted, &named, &[taken], &data, &opts, 1).is_empty()
+                );
+            }
             assert_eq!(tried.len(), Effect::Creep.forms().len());
             // `--effects` without creep: the drift is never exchanged for it.
             let no_creep = Options {
@@ -2010,7 +2032,7 @@ mod tests {
                     .collect(),
                 ..opts.clone()
             };
-            assert!(exchanges(&with_drift.fitted, &named, &data, &no_creep, 1).is_empty());
+            assert!(exchanges(&with_drift.fitted, &named, &[], &data, &no_creep, 1).is_empty());
             let gates: Vec<([f64; 3], bool)> = tried
                 .iter()
                 .map(|(_, _, c)| exchange_gate(c, &with_drift, band, n, opts.bic_margin))
@@ -2118,7 +2140,7 @@ mod tests {
                 .collect();
             let band = rmse_band(&ev, 1, "exchange");
             let named = vec![named_effect.name().to_string()];
-            let tried = exchanges(&with_named.fitted, &named, &data, &opts, 1);
+            let tried = exchanges(&with_named.fitted, &named, &[], &data, &opts, 1);
             let partner = EXCHANGES
                 .iter()
                 .find(|(e, _)| *e == named_effect)
