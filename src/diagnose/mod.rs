@@ -752,8 +752,8 @@ const EXCHANGES: [(Effect, Effect); 6] = [
 const MAX_EXCHANGES: usize = 3;
 
 /// The exchanges of [`EXCHANGES`] open to `current` (its effects named in `named`, the
-/// partner among the effects searched, the pair not `taken` before either way round): per exchange the effect dropped, the proposal and
-/// its fit on the rest.
+/// partner among the effects searched, the pair not `taken` before either way round): per
+/// exchange the effect dropped, the proposal and its fit on the rest.
 fn exchanges(
     current: &Fitted,
     named: &[String],
@@ -1779,6 +1779,7 @@ pub fn diagnose_with_tests(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::physics::bouc_wen::{BoucWenParams, BoucWenState};
     use crate::physics::structure::tests::theta_with;
 
     /// A triangle from 0.05 to 0.05 + `amp` whose frequency rises from `rate` Hz by 0.1 Hz
@@ -1793,6 +1794,50 @@ mod tests {
             .collect()
     }
 
+    /// The Bouc-Wen loop (n = 1) of the records the tests write by hand.
+    const TEST_BOUC_WEN: BoucWenParams = BoucWenParams {
+        d_e: 0.17,
+        alpha: 0.05,
+        beta: 0.45,
+        gamma: 0.2,
+        n: 1.0,
+        d0: 0.0,
+    };
+
+    /// The plain model fitted to `data` (sampled every `dt`), then `(effect, form)` fitted
+    /// on top of it.
+    fn plain_plus(data: &Data, dt: f64, effect: Effect, form: Form, opts: &Options) -> Evaluated {
+        let plain = Structure::new(&[], Some(1.0), Context::from_training(&data.ut, dt));
+        let base = baseline_fit(&plain, data, opts);
+        let p = Proposal {
+            parts: vec![(effect, form)],
+            placement: Placement::After,
+        };
+        fit_proposal(&base.structure, &base.theta, &p, &[], data, opts, 1)
+    }
+
+    /// Whether any exchange `tried` on `with` passes the gate (the band from `with`'s own
+    /// validation residual), and what the gates saw, for an assertion's message.
+    fn any_exchange_passes(
+        tried: &[(Effect, Proposal, Evaluated)],
+        with: &Evaluated,
+        data: &Data,
+        opts: &Options,
+    ) -> (bool, String) {
+        let band = rmse_band(&validation_residual(&data.yv, with), 1, "exchange");
+        let gates: Vec<([f64; 3], bool)> = tried
+            .iter()
+            .map(|(_, _, c)| exchange_gate(c, with, band, data.ut.len(), opts.bic_margin))
+            .collect();
+        let why = format!(
+            "validation RMSE {} band {band:?}, exchanges [ΔBIC, Δvalidation, sum] {:?} validation RMSE {:?}",
+            with.validate_rmse,
+            gates.iter().map(|g| g.0).collect::<Vec<_>>(),
+            tried.iter().map(|t| t.2.validate_rmse).collect::<Vec<_>>()
+        );
+        (gates.iter().any(|g| g.1), why)
+    }
+
     /// The creep tests' record, written without `Structure`: `BoucWenState` (n = 1), then a
     /// Kelvin-Voigt element of gain `creep` at 14 s from rest, plus `drift(t)` and noise of
     /// RMS `sigma` from the stream `(salt, label)`.
@@ -1804,15 +1849,7 @@ mod tests {
         sigma: f64,
         (salt, label): (u64, &str),
     ) -> Vec<f64> {
-        use crate::physics::bouc_wen::{BoucWenParams, BoucWenState};
-        let p = BoucWenParams {
-            d_e: 0.17,
-            alpha: 0.05,
-            beta: 0.45,
-            gamma: 0.2,
-            n: 1.0,
-            d0: 0.0,
-        };
+        let p = TEST_BOUC_WEN;
         let mut bw = BoucWenState::new(u[0]);
         let a = 1.0 - (-dt / 14.0f64).exp();
         let mut x = 0.0;
@@ -1997,21 +2034,7 @@ mod tests {
                 uv: uv.clone(),
                 periodic: false,
             };
-            let plain = Structure::new(&[], Some(1.0), Context::from_training(&ut, dt));
-            let base = baseline_fit(&plain, &data, &opts);
-            let spline = Proposal {
-                parts: vec![(Effect::OffsetDrift, Form::Spline)],
-                placement: Placement::After,
-            };
-            let with_drift =
-                fit_proposal(&base.structure, &base.theta, &spline, &[], &data, &opts, 1);
-            let ev: Vec<f64> = data
-                .yv
-                .iter()
-                .zip(&with_drift.out_v)
-                .map(|(a, b)| a - b)
-                .collect();
-            let band = rmse_band(&ev, 1, "exchange");
+            let with_drift = plain_plus(&data, dt, Effect::OffsetDrift, Form::Spline, &opts);
             let named = vec!["offset-drift".to_string()];
             let tried = exchanges(&with_drift.fitted, &named, &[], &data, &opts, 1);
             // A pair exchanged before, either way round, is not offered again.
@@ -2033,18 +2056,8 @@ mod tests {
                 ..opts.clone()
             };
             assert!(exchanges(&with_drift.fitted, &named, &[], &data, &no_creep, 1).is_empty());
-            let gates: Vec<([f64; 3], bool)> = tried
-                .iter()
-                .map(|(_, _, c)| exchange_gate(c, &with_drift, band, n, opts.bic_margin))
-                .collect();
-            assert_eq!(
-                gates.iter().any(|g| g.1),
-                exchanged,
-                "creep {creep}: drift model validation RMSE {} band {band:?}, exchanges [ΔBIC, Δvalidation, sum] {:?} validation RMSE {:?}",
-                with_drift.validate_rmse,
-                gates.iter().map(|g| g.0).collect::<Vec<_>>(),
-                tried.iter().map(|t| t.2.validate_rmse).collect::<Vec<_>>()
-            );
+            let (passes, why) = any_exchange_passes(&tried, &with_drift, &data, &opts);
+            assert_eq!(passes, exchanged, "creep {creep}: drift model {why}");
         }
     }
 
@@ -2064,15 +2077,7 @@ mod tests {
         };
         let (ut, uv) = (bipolar(1.0, 2.3), bipolar(0.6, 1.9));
         let record = |u: &[f64], map: &dyn Fn(&[f64]) -> Vec<f64>, salt: u64| -> Vec<f64> {
-            use crate::physics::bouc_wen::{BoucWenParams, BoucWenState};
-            let p = BoucWenParams {
-                d_e: 0.17,
-                alpha: 0.05,
-                beta: 0.45,
-                gamma: 0.2,
-                n: 1.0,
-                d0: 0.0,
-            };
+            let p = TEST_BOUC_WEN;
             let v = map(u);
             let mut bw = BoucWenState::new(v[0]);
             let mut rng = TrialSeed::derive(salt, "exchange-map", "noise", 0).rng(0);
@@ -2117,28 +2122,7 @@ mod tests {
                 uv: uv.clone(),
                 periodic: false,
             };
-            let plain = Structure::new(&[], Some(1.0), Context::from_training(&ut, dt));
-            let base = baseline_fit(&plain, &data, &opts);
-            let named_fit = Proposal {
-                parts: vec![(named_effect, form)],
-                placement: Placement::After,
-            };
-            let with_named = fit_proposal(
-                &base.structure,
-                &base.theta,
-                &named_fit,
-                &[],
-                &data,
-                &opts,
-                1,
-            );
-            let ev: Vec<f64> = data
-                .yv
-                .iter()
-                .zip(&with_named.out_v)
-                .map(|(a, b)| a - b)
-                .collect();
-            let band = rmse_band(&ev, 1, "exchange");
+            let with_named = plain_plus(&data, dt, named_effect, form, &opts);
             let named = vec![named_effect.name().to_string()];
             let tried = exchanges(&with_named.fitted, &named, &[], &data, &opts, 1);
             let partner = EXCHANGES
@@ -2150,19 +2134,13 @@ mod tests {
             assert!(tried.iter().all(
                 |(out, p, _)| *out == named_effect && p.parts == vec![(partner, p.parts[0].1)]
             ));
-            let gates: Vec<([f64; 3], bool)> = tried
-                .iter()
-                .map(|(_, _, c)| exchange_gate(c, &with_named, band, n, opts.bic_margin))
-                .collect();
+            let (passes, why) = any_exchange_passes(&tried, &with_named, &data, &opts);
             assert_eq!(
-                gates.iter().any(|g| g.1),
+                passes,
                 exchanged,
-                "{} for {}: validation RMSE {} band {band:?}, exchanges [ΔBIC, Δvalidation, sum] {:?} validation RMSE {:?}",
+                "{} for {}: {why}",
                 named_effect.name(),
-                partner.name(),
-                with_named.validate_rmse,
-                gates.iter().map(|g| g.0).collect::<Vec<_>>(),
-                tried.iter().map(|t| t.2.validate_rmse).collect::<Vec<_>>()
+                partner.name()
             );
         }
     }
