@@ -266,6 +266,32 @@ pub fn fit(
     budget: Budget,
     seed: u64,
 ) -> Fitted {
+    let start = Start {
+        at: start,
+        hints: &[],
+    };
+    fit_from(st, u, y, start, free, budget, seed)
+}
+
+/// Where a fit starts: at `at` (neutral where `None`), with `hints` (full points, e.g. the
+/// same effect's fit on an earlier parent) evaluated by the global stage right after it.
+#[derive(Clone, Copy)]
+pub struct Start<'a> {
+    pub at: Option<&'a [f64]>,
+    pub hints: &'a [Vec<f64>],
+}
+
+/// [`fit`] from a [`Start`] with hints.
+pub fn fit_from(
+    st: &Structure,
+    u: &Arc<Vec<f64>>,
+    y: &Arc<Vec<f64>>,
+    from: Start<'_>,
+    free: Option<&[usize]>,
+    budget: Budget,
+    seed: u64,
+) -> Fitted {
+    let start = from.at;
     let obj = Arc::new(StructureObjective::new(st.clone(), u.clone(), y.clone()));
     let w = budget.global_window;
     let n = u.len().min(y.len());
@@ -288,6 +314,7 @@ pub fn fit(
     let free = free.unwrap_or(&all).to_vec();
     let mut screened_out = false;
     let mut starts = vec![best.clone()];
+    let initial = best.clone();
     if budget.global > 0 && !free.is_empty() {
         let bounds = Bounds::new(
             free.iter().map(|&i| obj.bounds().lower()[i]).collect(),
@@ -305,6 +332,12 @@ pub fn fit(
         // the start): narrow basins (a lightly damped mode) are then not left to chance.
         let start: Vec<f64> = free.iter().map(|&i| best[i]).collect();
         let mut points = vec![start.clone()];
+        points.extend(
+            from.hints
+                .iter()
+                .map(|h| free.iter().map(|&i| h[i]).collect::<Vec<f64>>())
+                .filter(|h| *h != start),
+        );
         let cell = |j: usize, k: usize, m: usize| {
             let (lo, hi) = (obj.bounds().lower()[free[j]], obj.bounds().upper()[free[j]]);
             lo + (hi - lo) * (k as f64 + 0.5) / m as f64
@@ -398,6 +431,18 @@ pub fn fit(
         if let Some((_, x)) = polished {
             best = x;
         }
+    }
+    // Screened out after a search of the first samples only: that search's best may fit
+    // the whole record worse than the start did; the better of the two on the whole record
+    // (two evaluations), so a nested candidate never reports less than its parent.
+    if screened_out && explored < n {
+        let at_best = Fitted::at(st, best, u, y, evaluations + 2);
+        let at_start = Fitted::at(st, initial, u, y, evaluations + 2);
+        return if at_start.linear.cost < at_best.linear.cost {
+            at_start
+        } else {
+            at_best
+        };
     }
     Fitted::at(st, best, u, y, evaluations)
 }
