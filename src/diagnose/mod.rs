@@ -882,14 +882,60 @@ fn exchanges(
             })
         })
         .collect();
-    jobs.par_iter()
+    let singles: Vec<(Effect, Proposal, Evaluated)> = jobs
+        .par_iter()
         .with_max_len(1)
         .map(|(i, p)| {
             let (rest, theta) = &rests[*i];
             let c = fit_proposal(rest, theta, p, Seeds::Hinted(memory), d, opts, 300 + round);
             (open[*i].0, p.clone(), c)
         })
-        .collect()
+        .collect();
+    // One effect may stand in for two: the partner, with each effect the rest lacks that
+    // was fitted on an earlier parent (its best form there), started at both fits.
+    let mut pairs: Vec<(usize, Proposal, &Fitted, &Fitted)> = Vec::new();
+    for (i, &(out, partner)) in open.iter().enumerate() {
+        let Some((_, p, best)) = singles
+            .iter()
+            .filter(|(e, p, _)| *e == out && p.parts[0].0 == partner)
+            .min_by(|a, b| a.2.fitted.linear.cost.total_cmp(&b.2.fitted.linear.cost))
+        else {
+            continue;
+        };
+        let rest = &rests[i].0;
+        for &x in &opts.effects {
+            if x == out
+                || x == partner
+                || rest.has(x)
+                || (x == Effect::Delay || x == Effect::InputLag)
+                    && (partner == Effect::Delay || partner == Effect::InputLag)
+            {
+                continue;
+            }
+            let earlier = memory
+                .iter()
+                .filter(|((e, _), _)| *e == x)
+                .filter_map(|(k, fits)| fits.first().map(|f| (k.1, f)))
+                .filter(|(_, f)| f.structure.placement() == st.placement())
+                .min_by(|a, b| a.1.linear.cost.total_cmp(&b.1.linear.cost));
+            if let Some((form, f)) = earlier {
+                let parts = vec![p.parts[0], (x, form)];
+                let placement = st.placement();
+                pairs.push((i, Proposal { parts, placement }, &best.fitted, f));
+            }
+        }
+    }
+    let doubles: Vec<(Effect, Proposal, Evaluated)> = pairs
+        .par_iter()
+        .with_max_len(1)
+        .map(|(i, p, a, b)| {
+            let (rest, theta) = &rests[*i];
+            let seeds = Seeds::At(&[a, b]);
+            let c = fit_proposal(rest, theta, p, seeds, d, opts, 300 + round);
+            (open[*i].0, p.clone(), c)
+        })
+        .collect();
+    singles.into_iter().chain(doubles).collect()
 }
 
 /// An exchanged model against the one it would replace: `[training ΔBIC, Δ validation
@@ -908,6 +954,33 @@ fn exchange_gate(
     let d_all = d_bic + d_vic;
     let passed = d_all < -margin && d_bic < margin && d_vic < margin && c.validate_rmse <= band[1];
     ([d_bic, d_vic, d_all], passed)
+}
+
+/// A two-for-one exchange's second effect judged as a single of a forward round would be:
+/// `pair` against the partner alone (`alone`), both fitted on the rest.
+fn beside_alone(
+    pair: &Evaluated,
+    alone: &Evaluated,
+    d: &Data,
+    noise: f64,
+    unit: &str,
+    opts: &Options,
+) -> Verdict {
+    let gate = Gate {
+        band: rmse_band(
+            &validation_residual(&d.yv, alone),
+            opts.seed,
+            &alone.fitted.structure.label(),
+        ),
+        margin: opts.bic_margin,
+        min_explained: MIN_EXPLAINED,
+        nt: d.ut.len(),
+        noise,
+        unit,
+        yv: &d.yv,
+        seed: opts.seed,
+    };
+    judge(pair, alone, &gate)
 }
 
 /// The gate of one candidate against its parent, and the evidence line.
@@ -1699,7 +1772,25 @@ pub fn diagnose_with_tests(
         let mut at = Vec::new();
         for (i, (out, p, c)) in tried.iter().enumerate() {
             evaluations += c.fitted.evaluations;
-            let ([d_bic, d_vic, d_all], passed) = exchange_gate(c, &current, band, nt, margin);
+            let ([d_bic, d_vic, d_all], mut passed) = exchange_gate(c, &current, band, nt, margin);
+            // Two for one: the second effect must also earn its place beside the partner
+            // alone, as a single of a forward round would.
+            let mut beside = String::new();
+            if p.parts.len() == 2 {
+                let alone = tried
+                    .iter()
+                    .filter(|(e, q, _)| e == out && q.parts == p.parts[..1])
+                    .map(|t| &t.2)
+                    .next();
+                let v = alone.map(|a| beside_alone(c, a, &d, noise, &unit, opts));
+                passed &= v.as_ref().is_some_and(|v| v.passed);
+                beside = format!(
+                    "; {} beside {} alone: {}",
+                    p.parts[1].0.name(),
+                    p.parts[0].0.name(),
+                    v.map_or("not fitted".to_string(), |v| v.evidence)
+                );
+            }
             if passed && best.is_none_or(|b| d_all < b.1) {
                 best = Some((i, d_all));
             }
@@ -1721,7 +1812,7 @@ pub fn diagnose_with_tests(
                 fmt(band[1]),
                 unit,
                 if passed { "yes" } else { "no" },
-            );
+            ) + &beside;
             candidates.push(candidate(
                 p,
                 c,
@@ -1747,7 +1838,7 @@ pub fn diagnose_with_tests(
             break;
         };
         let (out, p, c) = &tried[i];
-        exchanged.push((*out, p.parts[0].0));
+        exchanged.extend(p.parts.iter().map(|x| (*out, x.0)));
         candidates[at[i]].accepted = true;
         candidates[at[i]].notes.push(format!(
             "taken in place of {}: all the data support it better",
@@ -1768,9 +1859,11 @@ pub fn diagnose_with_tests(
             }
         }
         left_out.retain(|n| n != out.name());
-        let partner = p.parts[0].0.name().to_string();
-        if !left_out.contains(&partner) {
-            left_out.push(partner);
+        for x in &p.parts {
+            let name = x.0.name().to_string();
+            if !left_out.contains(&name) {
+                left_out.push(name);
+            }
         }
         let used;
         (current, used) = repolish(c.clone(), &d, opts, 200 + round as u64);
@@ -1938,6 +2031,21 @@ mod tests {
         );
         (gates.iter().any(|g| g.1), why)
     }
+
+    /// The exchange tests' drives: a triangle chirp for training, a slower, smaller one
+    /// for validation.
+    fn chirp_records(n: usize, dt: f64) -> (Vec<f64>, Vec<f64>) {
+        (
+            triangle_chirp(n, dt, 1.0, 4.6),
+            triangle_chirp(n, dt, 0.6, 3.8),
+        )
+    }
+
+    /// A slow drift of each record's own (training, validation).
+    const WANDER: [fn(f64) -> f64; 2] = [
+        |t| 0.02 * (std::f64::consts::TAU * t / 4.0).sin(),
+        |t| -0.015 * (std::f64::consts::TAU * t / 5.0).cos(),
+    ];
 
     /// The creep tests' record, written without `Structure`: `BoucWenState` (n = 1), then a
     /// Kelvin-Voigt element of gain `creep` at 14 s from rest, plus `drift(t)` and noise of
@@ -2111,18 +2219,12 @@ mod tests {
     #[test]
     fn a_drift_standing_in_for_creep_is_exchanged_and_a_true_drift_kept() {
         let (dt, n, sigma) = (1e-3, 6000, 1e-3);
-        let (ut, uv) = (
-            triangle_chirp(n, dt, 1.0, 4.6),
-            triangle_chirp(n, dt, 0.6, 3.8),
-        );
+        let (ut, uv) = chirp_records(n, dt);
         let record = |u: &[f64], creep: f64, drift: &dyn Fn(f64) -> f64, salt: u64| {
             creep_record(u, dt, creep, drift, sigma, (salt, "exchange"))
         };
         let opts = Options::default();
-        let drift_only: [&dyn Fn(f64) -> f64; 2] = [
-            &|t: f64| 0.02 * (std::f64::consts::TAU * t / 4.0).sin(),
-            &|t: f64| -0.015 * (std::f64::consts::TAU * t / 5.0).cos(),
-        ];
+        let drift_only: [&dyn Fn(f64) -> f64; 2] = [&WANDER[0], &WANDER[1]];
         let none = |_: f64| 0.0;
         for (creep, drift, exchanged) in [
             (0.75, [&none as &dyn Fn(f64) -> f64, &none], true),
@@ -2297,6 +2399,56 @@ mod tests {
                 exchanged,
                 "{} for {partners:?}: {why}",
                 named_effect.name(),
+            );
+        }
+    }
+
+    /// One effect standing in for two: creep named on a record that holds a drift of its
+    /// own and an even-order asymmetry (the drive mapped to `v + 0.05 v²`) is exchanged for
+    /// the drift with the asymmetry fitted on an earlier parent; on the same record
+    /// without the asymmetry the pair is offered too, but its asymmetry does not earn a
+    /// place beside the drift alone.
+    #[test]
+    fn a_creep_standing_in_for_two_effects_is_exchanged_for_both() {
+        let (dt, n, sigma) = (1e-3, 6000, 1e-3);
+        let (ut, uv) = chirp_records(n, dt);
+        let drift: [&dyn Fn(f64) -> f64; 2] = [&WANDER[0], &WANDER[1]];
+        let opts = Options::default();
+        for (q, both) in [(0.05, true), (0.0, false)] {
+            let skew = |u: &[f64]| u.iter().map(|v| v + q * v * v).collect::<Vec<f64>>();
+            let record = |u: &[f64], k: usize| {
+                creep_record(&skew(u), dt, 0.0, drift[k], sigma, (k as u64 + 1, "two"))
+            };
+            let data = Data {
+                yt: Arc::new(record(&ut, 0)),
+                yv: record(&uv, 1),
+                ut: Arc::new(ut.clone()),
+                uv: uv.clone(),
+                periodic: false,
+            };
+            let with_creep = plain_plus(&data, dt, Effect::Creep, Form::KelvinVoigt, &opts);
+            let asym = plain_plus(&data, dt, Effect::Asymmetry, Form::Even, &opts);
+            let memory = Memory::from([((Effect::Asymmetry, Form::Even), vec![asym.fitted])]);
+            let named = vec!["creep".to_string()];
+            let tried = exchanges(&with_creep.fitted, &named, &[], &memory, &data, &opts, 1);
+            assert_eq!(tried.len(), Effect::OffsetDrift.forms().len() + 1);
+            let (_, pair, c) = tried.iter().find(|t| t.1.parts.len() == 2).unwrap();
+            assert_eq!(pair.parts[0].0, Effect::OffsetDrift);
+            assert_eq!(pair.parts[1], (Effect::Asymmetry, Form::Even));
+            let alone = tried
+                .iter()
+                .find(|t| t.1.parts == pair.parts[..1])
+                .map(|t| &t.2)
+                .unwrap();
+            let noise = sigma;
+            let band = rmse_band(&validation_residual(&data.yv, &with_creep), 1, "two");
+            let (gain, exchange) = exchange_gate(c, &with_creep, band, n, opts.bic_margin);
+            let beside = beside_alone(c, alone, &data, noise, "mm", &opts);
+            assert_eq!(
+                exchange && beside.passed,
+                both,
+                "q {q}: exchange {gain:?} {exchange}; beside the drift: {}",
+                beside.evidence
             );
         }
     }
