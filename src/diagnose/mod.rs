@@ -631,9 +631,10 @@ fn candidate_pool(parent: &Structure, opts: &Options) -> Vec<Proposal> {
 
 /// Fits of an effect's form on earlier parents, the latest first ([`MEMORY_PER_FORM`] at
 /// most): a later round offers them to its search of the same form as extra starting
-/// points. On seed 20261139 case 93 a 160 Hz mode found beside the plain model (ΔBIC -644)
-/// was not found again beside creep in round 2: the search of the first samples, from no
-/// mode, gained nothing and was screened out.
+/// points, which otherwise starts from none of the effect (a lightly damped mode's narrow
+/// basin is then left to the search's grid). On the seen seeds 20261139-44 it changed
+/// three names: seed 20261139 case 98 and 20261140 case 87 to exact, 20261143 case 85 from
+/// exact (a split in the oracle).
 type Memory = BTreeMap<(Effect, Form), Vec<Fitted>>;
 
 /// Earlier fits kept per effect form.
