@@ -1780,9 +1780,8 @@ pub fn diagnose_with_tests(
             if p.parts.len() == 2 {
                 let alone = tried
                     .iter()
-                    .filter(|(e, q, _)| e == out && q.parts == p.parts[..1])
-                    .map(|t| &t.2)
-                    .next();
+                    .find(|(e, q, _)| e == out && q.parts == p.parts[..1])
+                    .map(|t| &t.2);
                 let v = alone.map(|a| beside_alone(c, a, &d, noise, &unit, opts));
                 passed &= v.as_ref().is_some_and(|v| v.passed);
                 beside = format!(
@@ -2009,6 +2008,17 @@ mod tests {
             opts,
             1,
         )
+    }
+
+    /// The exchanges open to `fitted` with nothing fitted in earlier rounds, in round 1.
+    fn offered(
+        fitted: &Fitted,
+        named: &[String],
+        taken: &[(Effect, Effect)],
+        data: &Data,
+        opts: &Options,
+    ) -> Vec<(Effect, Proposal, Evaluated)> {
+        exchanges(fitted, named, taken, &Memory::new(), data, opts, 1)
     }
 
     /// Whether any exchange `tried` on `with` passes the gate (the band from `with`'s own
@@ -2240,32 +2250,13 @@ mod tests {
             };
             let with_drift = plain_plus(&data, dt, Effect::OffsetDrift, Form::Spline, &opts);
             let named = vec!["offset-drift".to_string()];
-            let tried = exchanges(
-                &with_drift.fitted,
-                &named,
-                &[],
-                &Memory::new(),
-                &data,
-                &opts,
-                1,
-            );
+            let tried = offered(&with_drift.fitted, &named, &[], &data, &opts);
             // A pair exchanged before, either way round, is not offered again.
             for taken in [
                 (Effect::OffsetDrift, Effect::Creep),
                 (Effect::Creep, Effect::OffsetDrift),
             ] {
-                assert!(
-                    exchanges(
-                        &with_drift.fitted,
-                        &named,
-                        &[taken],
-                        &Memory::new(),
-                        &data,
-                        &opts,
-                        1
-                    )
-                    .is_empty()
-                );
+                assert!(offered(&with_drift.fitted, &named, &[taken], &data, &opts).is_empty());
             }
             assert_eq!(tried.len(), Effect::Creep.forms().len());
             // `--effects` without creep: the drift is never exchanged for it.
@@ -2276,18 +2267,7 @@ mod tests {
                     .collect(),
                 ..opts.clone()
             };
-            assert!(
-                exchanges(
-                    &with_drift.fitted,
-                    &named,
-                    &[],
-                    &Memory::new(),
-                    &data,
-                    &no_creep,
-                    1
-                )
-                .is_empty()
-            );
+            assert!(offered(&with_drift.fitted, &named, &[], &data, &no_creep).is_empty());
             let (passes, why) = any_exchange_passes(&tried, &with_drift, &data, &opts);
             assert_eq!(passes, exchanged, "creep {creep}: drift model {why}");
         }
@@ -2375,15 +2355,7 @@ mod tests {
             };
             let with_named = plain_plus(&data, dt, named_effect, form, &opts);
             let named = vec![named_effect.name().to_string()];
-            let tried = exchanges(
-                &with_named.fitted,
-                &named,
-                &[],
-                &Memory::new(),
-                &data,
-                &opts,
-                1,
-            );
+            let tried = offered(&with_named.fitted, &named, &[], &data, &opts);
             let partners: Vec<Effect> = EXCHANGES
                 .iter()
                 .filter(|(e, _)| *e == named_effect)
