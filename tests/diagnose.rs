@@ -155,8 +155,19 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
     // White noise on a 1 kHz record: the difference orders agree, the floor is measured.
     assert_eq!(json["noise_floor_settled"], true);
     assert!(!text.contains("not settled"), "{text}");
-    for key in ["train_rmse", "validate_rmse", "params"] {
+    for key in ["train_rmse", "validate_rmse", "params", "plausibility"] {
         assert!(json["baseline"].get(key).is_some() && json["final"].get(key).is_some());
+    }
+    // Plausibility: every candidate carries its flags (a list), each flag names a reported
+    // parameter or the model's own, its kind and why; the excited band is stated.
+    assert!(json["excited_band_hz"].as_f64().unwrap() > 0.0);
+    for c in json["candidates"].as_array().unwrap() {
+        for f in c["plausibility"].as_array().unwrap() {
+            assert!(
+                ["at-bound", "unsupported", "implausible"].contains(&f["kind"].as_str().unwrap())
+            );
+            assert!(!f["why"].as_str().unwrap().is_empty() && f["value"].is_number());
+        }
     }
     // Dynamics is tried after the hysteresis in each of its forms in the first round; the
     // feedback placement (searched afresh, the costliest candidate) only if a mode after

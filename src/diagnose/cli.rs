@@ -66,6 +66,11 @@ pub struct DiagnoseArgs {
     /// the second period scored).
     #[arg(long)]
     pub validate_periodic: bool,
+    /// For each tie (candidates the records cannot tell apart), design the recording that
+    /// would separate them: the excitation, within the recorded input range, on which the
+    /// tied models' predictions differ most (`next_experiment` in diagnosis.json).
+    #[arg(long)]
+    pub suggest: bool,
 }
 
 fn effects(spec: &Option<String>) -> Result<Vec<Effect>> {
@@ -110,6 +115,7 @@ pub fn run(a: DiagnoseArgs) -> Result<String> {
         bootstrap: a.bootstrap,
         hold,
         validate_periodic: a.validate_periodic,
+        suggest: a.suggest,
         ..Options::default()
     };
     opts.fixed_n()?;

@@ -30,9 +30,12 @@
 
 pub mod cli;
 pub mod fit;
+pub mod plausible;
 pub mod proof;
 pub mod report;
 pub mod residual;
+pub mod suggest;
+pub mod tie;
 
 use crate::error::{Error, Result};
 use crate::harness::TrialSeed;
@@ -80,6 +83,8 @@ pub struct Options {
     pub feedback: bool,
     /// The validation record is one period of a periodic steady state.
     pub validate_periodic: bool,
+    /// Design the excitation that would separate each tie ([`suggest::design`]).
+    pub suggest: bool,
 }
 
 impl Default for Options {
@@ -121,6 +126,7 @@ impl Default for Options {
             hold: Hold::Zoh,
             feedback: true,
             validate_periodic: false,
+            suggest: false,
         }
     }
 }
@@ -154,6 +160,9 @@ pub struct ModelSummary {
     pub score: f64,
     /// Bootstrap p-value of the score under the fitted baseline (structure left if small).
     pub p_value: f64,
+    /// Parameters at a bound, or beyond what the training record can show
+    /// ([`plausible::check`]).
+    pub plausibility: Vec<plausible::Flag>,
     pub evaluations: u64,
 }
 
@@ -191,6 +200,12 @@ pub struct Candidate {
     /// Where a tie rule or the backward step overrode the gate's choice, and why.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
+    /// The flags ([`plausible::check`]) on the parameters of its own effects: what its
+    /// evidence rests on.
+    pub plausibility: Vec<plausible::Flag>,
+    /// For an accepted candidate: the others of its round the records cannot tell from it.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub ties: Vec<tie::Tie>,
     /// Model evaluations its fit took (the search, the polish and the validation states).
     pub evaluations: u64,
 }
@@ -232,6 +247,8 @@ pub struct Diagnosis {
     pub bootstrap_scores: Vec<f64>,
     /// How the input moves between samples (`--hold`).
     pub hold: String,
+    /// Top of the band the training drive excites ([`plausible::Scope::band_hz`]).
+    pub excited_band_hz: f64,
     /// Free-run simulation on test records from their input alone (`--test`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub tests: Vec<FreeRun>,
@@ -241,6 +258,9 @@ pub struct Diagnosis {
     /// Series for the figures (not serialised).
     #[serde(skip)]
     pub series: Series,
+    /// The recording that would settle the first tie the final model holds (`--suggest`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub next_experiment: Option<suggest::NextExperiment>,
 }
 
 impl Diagnosis {
@@ -315,9 +335,31 @@ struct Data {
     yv: Vec<f64>,
     /// The validation record is one period of a periodic steady state.
     periodic: bool,
+    /// What the training record can support, for the plausibility flags.
+    scope: plausible::Scope,
 }
 
 impl Data {
+    /// Training `(ut, yt)` and validation `(uv, yv)` sampled every `dt`.
+    fn new(
+        ut: Vec<f64>,
+        yt: Vec<f64>,
+        uv: Vec<f64>,
+        yv: Vec<f64>,
+        periodic: bool,
+        dt: f64,
+    ) -> Data {
+        let scope = plausible::Scope::of(&ut, &yt, dt);
+        Data {
+            ut: Arc::new(ut),
+            yt: Arc::new(yt),
+            uv,
+            yv,
+            periodic,
+            scope,
+        }
+    }
+
     /// `f`'s output on the validation input (recorded output `yv`, used only for the
     /// record's own initial state); a periodic record is simulated over two periods and the
     /// second returned, so no start-up transient is scored. Also the evaluations used and
@@ -485,6 +527,7 @@ fn summary(e: &Evaluated, d: &Data, boot: &[f64], seed: u64) -> ModelSummary {
         tests: e.tests.clone(),
         score: e.score,
         p_value: boot_p(e.score, boot),
+        plausibility: plausible::check(&e.fitted, &d.scope),
         evaluations: e.fitted.evaluations,
     }
 }
@@ -1163,6 +1206,49 @@ fn repolish(c: Evaluated, d: &Data, opts: &Options, salt: u64) -> (Evaluated, u6
     (better, used)
 }
 
+/// The candidates of a round that tie with the named one (`named`, an index into the
+/// round's `pool`, `tried` and `verdicts`), each with the experiment that would separate
+/// them when asked. Other forms of the named effects and richer forms of the parent's own
+/// are not rival names.
+fn round_ties(
+    (current, parent): (&Evaluated, &Structure),
+    named: usize,
+    (pool, tried, verdicts): (&[Proposal], &[Evaluated], &[Verdict]),
+    d: &Data,
+    noise: f64,
+    opts: &Options,
+) -> Vec<tie::Tie> {
+    let label = |p: &Proposal| format!("{} [{}]", p.name(), p.form());
+    (0..pool.len())
+        .filter(|&j| {
+            j != named
+                && pool[j].effects() != pool[named].effects()
+                && !pool[j].effects().iter().all(|&e| parent.has(e))
+        })
+        .filter_map(|j| {
+            let mut t = tie::tie(
+                current,
+                (&tried[named], verdicts[named].delta_bic),
+                (&tried[j], verdicts[j].delta_bic),
+                (pool[j].name(), pool[j].form()),
+                d,
+                opts.seed,
+            )?;
+            if opts.suggest {
+                t.next_experiment = Some(suggest::design(
+                    &tried[named].fitted,
+                    &tried[j].fitted,
+                    [label(&pool[named]), label(&pool[j])],
+                    &d.ut,
+                    d.scope.dt,
+                    noise,
+                ));
+            }
+            Some(t)
+        })
+        .collect()
+}
+
 /// The report's line of a fitted proposal, not (yet) accepted.
 fn candidate(
     p: &Proposal,
@@ -1171,7 +1257,7 @@ fn candidate(
     parent: String,
     delta_bic: f64,
     evidence: String,
-    nt: usize,
+    d: &Data,
 ) -> Candidate {
     Candidate {
         name: p.name(),
@@ -1184,7 +1270,7 @@ fn candidate(
         round,
         parent,
         delta_bic,
-        train_rmse: c.fitted.rmse(nt),
+        train_rmse: c.fitted.rmse(d.ut.len()),
         validate_rmse: c.validate_rmse,
         validate_ic: c.validate_ic,
         score: c.score,
@@ -1193,6 +1279,8 @@ fn candidate(
         params: named(&c.fitted),
         evidence,
         notes: Vec::new(),
+        plausibility: plausible::check_effects(&c.fitted, &d.scope, &p.effects()),
+        ties: Vec::new(),
         evaluations: c.fitted.evaluations,
     }
 }
@@ -1215,16 +1303,15 @@ fn transfer(p: &Proposal) -> String {
     }
 }
 
-/// RMSE of `f` simulated on `t`'s input alone: initial hysteretic and creep states at rest
-/// (nothing is fitted to `t`'s output); for a periodic set the second of two periods.
-fn free_run(f: &Fitted, t: &TestSet) -> f64 {
+/// `f`'s output on input `u` alone, from rest: initial hysteretic and creep states zero,
+/// the record's own drift unknown (zero), the offset the training's. What a model predicts
+/// for a record nothing was fitted to.
+fn from_rest(f: &Fitted, u: &[f64]) -> Vec<f64> {
     let st = &f.structure;
     let mut theta = f.theta.clone();
     if let Some(i) = st.specs().iter().position(|s| s.name == "g0_frac") {
         theta[i] = 0.0;
     }
-    // The record's own drift and creep states are unknown from its input alone: zero (at
-    // rest); the offset stays the training's.
     let mut coef = f.linear.coef.clone();
     let names = st.linear_names();
     for j in st.record_coefs() {
@@ -1232,13 +1319,19 @@ fn free_run(f: &Fitted, t: &TestSet) -> f64 {
             coef[j] = 0.0;
         }
     }
+    st.simulate(&theta, &coef, u).0
+}
+
+/// RMSE of `f` simulated on `t`'s input alone ([`from_rest`]); for a periodic set the
+/// second of two periods.
+fn free_run(f: &Fitted, t: &TestSet) -> f64 {
     let r = &t.recording;
     let u: Vec<f64> = if t.periodic {
         r.u.iter().chain(&r.u).copied().collect()
     } else {
         r.u.clone()
     };
-    let (out, _) = st.simulate(&theta, &coef, &u);
+    let out = from_rest(f, &u);
     let e: Vec<f64> = out[u.len() - r.len()..]
         .iter()
         .zip(&r.y)
@@ -1289,13 +1382,14 @@ pub fn diagnose_with_tests(
             validate.len()
         )));
     }
-    let d = Data {
-        ut: Arc::new(train.u.clone()),
-        yt: Arc::new(train.y.clone()),
-        uv: validate.u.clone(),
-        yv: validate.y.clone(),
-        periodic: opts.validate_periodic,
-    };
+    let d = Data::new(
+        train.u.clone(),
+        train.y.clone(),
+        validate.u.clone(),
+        validate.y.clone(),
+        opts.validate_periodic,
+        dt,
+    );
     let ctx = Context::from_training(&train.u, dt).with_hold(opts.hold);
     let (train_noise, train_settled) = residual::noise_floor_and_settled(&train.y);
     let (validate_noise, validate_settled) = residual::noise_floor_and_settled(&validate.y);
@@ -1497,7 +1591,7 @@ pub fn diagnose_with_tests(
                     parent.label(),
                     v.delta_bic,
                     v.evidence.clone(),
-                    nt,
+                    &d,
                 ));
                 candidates.len() - 1
             };
@@ -1567,6 +1661,16 @@ pub fn diagnose_with_tests(
                     candidates[b.1].notes.push(why);
                     best = Some(t);
                 }
+            }
+            if let Some((i, at, _)) = best {
+                candidates[at].ties = round_ties(
+                    (&current, &parent),
+                    i,
+                    (&pool, &tried, &verdicts),
+                    &d,
+                    noise,
+                    opts,
+                );
             }
             let mut chosen: Option<(Proposal, Evaluated, usize)> = best.map(|(i, at, _)| {
                 let c = tried.get(i).expect("index of a candidate");
@@ -1820,7 +1924,7 @@ pub fn diagnose_with_tests(
                 format!("{parent_label} without {}", out.name()),
                 d_bic,
                 evidence,
-                nt,
+                &d,
             ));
         }
         let Some((i, _)) = best else {
@@ -1932,7 +2036,7 @@ pub fn diagnose_with_tests(
         }
         m
     };
-    let diag = Diagnosis {
+    let mut diag = Diagnosis {
         model: opts.model.clone(),
         train: train.name.clone(),
         validate: validate.name.clone(),
@@ -1953,12 +2057,19 @@ pub fn diagnose_with_tests(
         search_stop,
         bootstrap_scores: boot,
         hold: opts.hold.name().into(),
+        excited_band_hz: d.scope.band_hz,
         tests: free_runs,
         seed: opts.seed,
         evaluations,
         wall_s: started.elapsed().as_secs_f64(),
         series,
+        next_experiment: None,
     };
+    let next = diag
+        .in_final()
+        .flat_map(|c| &c.ties)
+        .find_map(|t| t.next_experiment.clone());
+    diag.next_experiment = next;
     Ok(diag)
 }
 
@@ -2117,13 +2228,11 @@ mod tests {
         let u = triangle_chirp(n, dt, 1.0, 4.6);
         let y = creep_record(&u, dt, 0.75, &|_| 0.0, sigma, (7, "creep-shape"));
         let plain = Structure::new(&[], Some(1.0), Context::from_training(&u, dt));
-        let data = Data {
-            uv: u.iter().rev().copied().collect(),
-            yv: y.iter().rev().copied().collect(),
-            ut: Arc::new(u),
-            yt: Arc::new(y),
-            periodic: false,
-        };
+        let (uv, yv) = (
+            u.iter().rev().copied().collect(),
+            y.iter().rev().copied().collect(),
+        );
+        let data = Data::new(u, y, uv, yv, false, dt);
         let opts = Options::default();
         let parent = baseline_fit(&plain, &data, &opts);
         assert!(
@@ -2186,13 +2295,14 @@ mod tests {
                 .collect()
         };
         let uv: Vec<f64> = u.iter().map(|x| 0.8 * x).collect();
-        let data = Data {
-            yt: Arc::new(simulate(&u, 1)),
-            yv: simulate(&uv, 2),
-            ut: Arc::new(u.clone()),
-            uv,
-            periodic: false,
-        };
+        let data = Data::new(
+            u.clone(),
+            simulate(&u, 1),
+            uv.clone(),
+            simulate(&uv, 2),
+            false,
+            dt,
+        );
         let opts = Options::default();
         let rate = Structure::with_forms(
             &[(Effect::RateDependence, Form::Gain)],
@@ -2241,13 +2351,14 @@ mod tests {
             (0.75, [&none as &dyn Fn(f64) -> f64, &none], true),
             (0.0, drift_only, false),
         ] {
-            let data = Data {
-                yt: Arc::new(record(&ut, creep, drift[0], 1)),
-                yv: record(&uv, creep, drift[1], 2),
-                ut: Arc::new(ut.clone()),
-                uv: uv.clone(),
-                periodic: false,
-            };
+            let data = Data::new(
+                ut.clone(),
+                record(&ut, creep, drift[0], 1),
+                uv.clone(),
+                record(&uv, creep, drift[1], 2),
+                false,
+                dt,
+            );
             let with_drift = plain_plus(&data, dt, Effect::OffsetDrift, Form::Spline, &opts);
             let named = vec!["offset-drift".to_string()];
             let tried = offered(&with_drift.fitted, &named, &[], &data, &opts);
@@ -2346,13 +2457,14 @@ mod tests {
         ];
         let opts = Options::default();
         for (maps, named_effect, form, exchanged) in cases {
-            let data = Data {
-                yt: Arc::new(record(&ut, maps, 1)),
-                yv: record(&uv, maps, 2),
-                ut: Arc::new(ut.clone()),
-                uv: uv.clone(),
-                periodic: false,
-            };
+            let data = Data::new(
+                ut.clone(),
+                record(&ut, maps, 1),
+                uv.clone(),
+                record(&uv, maps, 2),
+                false,
+                dt,
+            );
             let with_named = plain_plus(&data, dt, named_effect, form, &opts);
             let named = vec![named_effect.name().to_string()];
             let tried = offered(&with_named.fitted, &named, &[], &data, &opts);
@@ -2392,13 +2504,14 @@ mod tests {
             let record = |u: &[f64], k: usize| {
                 creep_record(&skew(u), dt, 0.0, drift[k], sigma, (k as u64 + 1, "two"))
             };
-            let data = Data {
-                yt: Arc::new(record(&ut, 0)),
-                yv: record(&uv, 1),
-                ut: Arc::new(ut.clone()),
-                uv: uv.clone(),
-                periodic: false,
-            };
+            let data = Data::new(
+                ut.clone(),
+                record(&ut, 0),
+                uv.clone(),
+                record(&uv, 1),
+                false,
+                dt,
+            );
             let with_creep = plain_plus(&data, dt, Effect::Creep, Form::KelvinVoigt, &opts);
             let asym = plain_plus(&data, dt, Effect::Asymmetry, Form::Even, &opts);
             let memory = Memory::from([((Effect::Asymmetry, Form::Even), vec![asym.fitted])]);

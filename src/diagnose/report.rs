@@ -100,6 +100,14 @@ pub fn text(d: &Diagnosis) -> String {
         for n in &c.notes {
             let _ = writeln!(s, "      note: {n}");
         }
+        for t in &c.ties {
+            let _ = writeln!(s, "      = tied: {}", t.why);
+        }
+        if c.accepted {
+            for g in &c.plausibility {
+                let _ = writeln!(s, "      ! accepted although {}", g.line());
+            }
+        }
     }
     if d.candidates.iter().any(|c| c.dropped) {
         let _ = writeln!(
@@ -147,6 +155,16 @@ pub fn text(d: &Diagnosis) -> String {
             let _ = writeln!(s, "  {k:<22} {}", sig(*v, 5));
         }
     }
+    if !fm.plausibility.is_empty() {
+        let _ = writeln!(
+            s,
+            "plausibility of the final model (the training record's drive excites up to {} Hz):",
+            sig(d.excited_band_hz, 3)
+        );
+        for g in &fm.plausibility {
+            let _ = writeln!(s, "  ! {}", g.line());
+        }
+    }
     for t in &d.tests {
         let _ = writeln!(
             s,
@@ -173,6 +191,34 @@ pub fn text(d: &Diagnosis) -> String {
             "no structure left that the residual tests can tell from noise".to_string()
         }
     );
+    let ties: Vec<String> = d
+        .in_final()
+        .flat_map(|c| {
+            c.ties
+                .iter()
+                .map(move |t| format!("{} with {} [{}]", c.name, t.name, t.form))
+        })
+        .collect();
+    if !ties.is_empty() {
+        let _ = writeln!(
+            s,
+            "tied (the records cannot tell them apart; see '= tied' above): {}",
+            ties.join("; ")
+        );
+        match &d.next_experiment {
+            Some(x) => {
+                for line in x.lines() {
+                    let _ = writeln!(s, "{line}");
+                }
+            }
+            None => {
+                let _ = writeln!(
+                    s,
+                    "  (--suggest designs the recording that would separate them)"
+                );
+            }
+        }
+    }
     let _ = writeln!(s, "search ended {}", d.search_stop);
     let _ = writeln!(s, "{} evaluations, {:.1} s", d.evaluations, d.wall_s);
     s
