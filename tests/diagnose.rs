@@ -309,3 +309,38 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
         assert!(!dir.path().join("refused").exists());
     }
 }
+
+/// Records at different rates diagnose together: the twin with a 3 ms delay recorded at
+/// 1 kHz for training and at 400 Hz for validation. The model is simulated on each at its
+/// own interval (the delay carried in seconds, the validation record's own sub-sample
+/// timing refitted): the delay is named and the validation record is predicted to its
+/// noise.
+#[test]
+fn records_at_different_rates_diagnose_together() {
+    use optbench::physics::twin::{self, TwinConfig};
+    use optbench::signal::Signal;
+    let cfg = TwinConfig::parse_overrides("amp=off,mode=off,delay=0.003").unwrap();
+    let record = |spec: &str, dt: f64, seed: u64| {
+        let u = Signal::parse(spec).unwrap().sample(dt, 8.0);
+        twin::recording(&cfg, format!("twin at {dt} s"), u, dt, seed).unwrap()
+    };
+    let train = record(
+        "multisine:fmin=0.25,fmax=2.5,period=8,rms=1.2,seed=3,offset=2.35 + sine:freq=40,amp=0.05",
+        1e-3,
+        1,
+    );
+    let validate = record(
+        "triangle:freq=0.7,amp=2.2,offset=2.35 + chirp:f0=15,f1=80,duration=8,amp=0.05,law=log",
+        2.5e-3,
+        2,
+    );
+    let d = diagnose(&train, &validate, &opts(1)).unwrap();
+    assert_eq!(d.sampling_intervals_s, [1e-3, 2.5e-3]);
+    assert_eq!(d.accepted_labels(), ["delay"], "{}", d.search_stop);
+    let p = &d.final_model.params;
+    let delay = p["delay_s"] + p["timing_offset_s"];
+    assert!((delay - 3e-3).abs() < 2e-4, "delay {delay}");
+    let ratio = d.final_model.validate_rmse / d.noise_floor;
+    assert!(ratio < 1.2, "validation {ratio}x the noise floor");
+    assert!(d.baseline.validate_rmse > 5.0 * d.noise_floor);
+}

@@ -244,6 +244,22 @@ impl Fitted {
         }
     }
 
+    /// The same fitted model for a record sampled every `dt` ([`Structure::at_interval`],
+    /// [`Structure::carry`]); itself when `dt` is its own.
+    pub fn at_interval(&self, dt: f64) -> Fitted {
+        let own = self.structure.context().dt;
+        if ((dt - own) / own).abs() <= 1e-9 {
+            return self.clone();
+        }
+        let structure = self.structure.at_interval(dt);
+        Fitted {
+            theta: self.structure.carry(&self.theta, &structure),
+            structure,
+            linear: self.linear.clone(),
+            evaluations: self.evaluations,
+        }
+    }
+
     /// Training RMSE (same units as y).
     pub fn rmse(&self, samples: usize) -> f64 {
         (2.0 * self.linear.cost / samples.max(1) as f64).sqrt()
@@ -497,21 +513,22 @@ fn bic_gain(rec: &TrialRecord, samples: usize) -> f64 {
     samples as f64 * (start_cost / rec.best).ln()
 }
 
-/// Validation SSE/2 of a fitted model as a function of its initial hysteretic state only
-/// (the validation recording starts with a history of its own; everything else is held).
-struct InitialState {
+/// Validation SSE/2 of a fitted model as a function of what belongs to the record only
+/// (its initial hysteretic state, and at another sampling interval its sub-sample timing);
+/// everything else is held.
+struct RecordState {
     st: Structure,
     theta: Vec<f64>,
     coef: Vec<f64>,
-    index: usize,
+    indices: Vec<usize>,
     u: Vec<f64>,
     y: Vec<f64>,
     bounds: Bounds,
 }
 
-impl Objective for InitialState {
+impl Objective for RecordState {
     fn name(&self) -> &str {
-        "initial state"
+        "record state"
     }
 
     fn bounds(&self) -> &Bounds {
@@ -520,7 +537,9 @@ impl Objective for InitialState {
 
     fn evaluate(&self, x: &[f64]) -> f64 {
         let mut th = self.theta.clone();
-        th[self.index] = x[0];
+        for (&i, &v) in self.indices.iter().zip(x) {
+            th[i] = v;
+        }
         let (out, _) = self.st.simulate_on(&th, &self.coef, &self.u, &self.y);
         let j: f64 = out
             .iter()
@@ -540,36 +559,74 @@ pub fn initial_state_for(
     budget: u64,
     seed: u64,
 ) -> (Vec<f64>, u64) {
-    let Some(index) = f.structure.specs().iter().position(|s| s.name == "g0_frac") else {
-        return (f.theta.clone(), 0);
+    record_state_for(f, u, y, budget, seed, false)
+}
+
+/// [`initial_state_for`], with the sub-sample timing (`timing_samples`) fitted too when
+/// `timing`: a record sampled at another interval than the training's has a hold and
+/// sampling of its own (a D/A staircase acts half of its own step late), so the timing the
+/// training record set is not carried. `budget` per fitted value.
+pub fn record_state_for(
+    f: &Fitted,
+    u: &[f64],
+    y: &[f64],
+    budget: u64,
+    seed: u64,
+    timing: bool,
+) -> (Vec<f64>, u64) {
+    let specs = f.structure.specs();
+    let names: &[&str] = if timing {
+        &["g0_frac", "timing_samples"]
+    } else {
+        &["g0_frac"]
     };
-    let spec = &f.structure.specs()[index];
-    let obj: Arc<dyn Objective> = Arc::new(InitialState {
+    let indices: Vec<usize> = names
+        .iter()
+        .filter_map(|n| specs.iter().position(|s| s.name == *n))
+        .collect();
+    if indices.is_empty() {
+        return (f.theta.clone(), 0);
+    }
+    let obj: Arc<dyn Objective> = Arc::new(RecordState {
         st: f.structure.clone(),
         theta: f.theta.clone(),
         coef: f.linear.coef.clone(),
-        index,
         u: u.to_vec(),
         y: y.to_vec(),
-        bounds: Bounds::new(vec![spec.lower], vec![spec.upper]).expect("valid bounds"),
+        bounds: Bounds::new(
+            indices.iter().map(|&i| specs[i].lower).collect(),
+            indices.iter().map(|&i| specs[i].upper).collect(),
+        )
+        .expect("valid bounds"),
+        indices: indices.clone(),
     });
     let label = format!("{} initial state", f.structure.label());
+    // The initial state from rest, the timing from where the training left it.
+    let x0: Vec<f64> = indices
+        .iter()
+        .map(|&i| {
+            if specs[i].name == "g0_frac" {
+                0.0
+            } else {
+                f.theta[i]
+            }
+        })
+        .collect();
     let rec = run_trial(TrialSpec {
         objective_id: &label,
         optimizer_id: "nelder-mead",
         trial: 0,
         objective: obj,
-        optimizer: &PolishFrom {
-            x0: vec![0.0],
-            step: 0.1,
-        },
-        budget,
+        optimizer: &PolishFrom { x0, step: 0.1 },
+        budget: budget * indices.len() as u64,
         stop_value: None,
         stall: None,
         seed: TrialSeed::derive(seed, &label, "nelder-mead", 0),
     });
     let mut th = f.theta.clone();
-    th[index] = rec.best_x[0];
+    for (&i, &v) in indices.iter().zip(&rec.best_x) {
+        th[i] = v;
+    }
     (th, rec.evaluations)
 }
 

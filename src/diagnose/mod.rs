@@ -218,6 +218,8 @@ pub struct Diagnosis {
     pub validate: String,
     pub unit: String,
     pub samples: [usize; 2],
+    /// Sampling interval of each record (s); each is simulated at its own.
+    pub sampling_intervals_s: [f64; 2],
     pub noise_floor: f64,
     /// Whether both records' noise floors have settled ([`residual::noise_floor_and_settled`]);
     /// if not, the floor is an upper bound and the noise-floor stop is off.
@@ -323,7 +325,8 @@ pub struct Series {
     /// Baseline and final outputs on training (0) and validation (1) data.
     pub baseline: [Vec<f64>; 2],
     pub final_model: [Vec<f64>; 2],
-    pub dt: f64,
+    /// Sampling interval of each record.
+    pub dt: [f64; 2],
     pub final_label: String,
 }
 
@@ -337,6 +340,8 @@ struct Data {
     periodic: bool,
     /// What the training record can support, for the plausibility flags.
     scope: plausible::Scope,
+    /// The validation record's sampling interval (the model is discretised for it).
+    dv: f64,
 }
 
 impl Data {
@@ -357,6 +362,7 @@ impl Data {
             yv,
             periodic,
             scope,
+            dv: dt,
         }
     }
 
@@ -371,7 +377,9 @@ impl Data {
         } else {
             (self.uv.clone(), yv.to_vec())
         };
-        let (theta, used) = fit::initial_state_for(f, &u, &y, 60, seed);
+        let other_interval = ((self.dv - self.scope.dt) / self.scope.dt).abs() > 1e-9;
+        let f = f.at_interval(self.dv);
+        let (theta, used) = fit::record_state_for(&f, &u, &y, 60, seed, other_interval);
         let (out, coef) = f.structure.simulate_on(&theta, &f.linear.coef, &u, &y);
         (out[out.len() - self.uv.len()..].to_vec(), used, coef)
     }
@@ -1331,7 +1339,7 @@ fn free_run(f: &Fitted, t: &TestSet) -> f64 {
     } else {
         r.u.clone()
     };
-    let out = from_rest(f, &u);
+    let out = from_rest(&f.at_interval(r.dt()), &u);
     let e: Vec<f64> = out[u.len() - r.len()..]
         .iter()
         .zip(&r.y)
@@ -1354,25 +1362,10 @@ pub fn diagnose_with_tests(
 ) -> Result<Diagnosis> {
     let started = std::time::Instant::now();
     let fixed_n = opts.fixed_n()?;
+    // Each record at its own sampling interval: the models are continuous-time, the
+    // validation and test records' linear blocks discretised for theirs.
     let dt = train.dt();
     let dv = validate.dt();
-    if ((dv - dt) / dt).abs() > 1e-6 {
-        return Err(Error::Input(format!(
-            "{} is sampled every {dv} s but {} every {dt} s; diagnose needs one sampling interval",
-            validate.name, train.name
-        )));
-    }
-    for t in tests {
-        let r = &t.recording;
-        if ((r.dt() - dt) / dt).abs() > 1e-6 {
-            return Err(Error::Input(format!(
-                "{} is sampled every {} s but {} every {dt} s; test records need the training's interval",
-                r.name,
-                r.dt(),
-                train.name
-            )));
-        }
-    }
     if train.len() < 200 || validate.len() < 200 {
         return Err(Error::Input(format!(
             "diagnose needs at least 200 samples per recording ({}: {}, {}: {})",
@@ -1382,7 +1375,7 @@ pub fn diagnose_with_tests(
             validate.len()
         )));
     }
-    let d = Data::new(
+    let mut d = Data::new(
         train.u.clone(),
         train.y.clone(),
         validate.u.clone(),
@@ -1390,6 +1383,7 @@ pub fn diagnose_with_tests(
         opts.validate_periodic,
         dt,
     );
+    d.dv = dv;
     let ctx = Context::from_training(&train.u, dt).with_hold(opts.hold);
     let (train_noise, train_settled) = residual::noise_floor_and_settled(&train.y);
     let (validate_noise, validate_settled) = residual::noise_floor_and_settled(&validate.y);
@@ -1465,7 +1459,7 @@ pub fn diagnose_with_tests(
     evaluations += boot_evals;
     let ev_base: Vec<f64> = d.yv.iter().zip(&base.out_v).map(|(a, b)| a - b).collect();
     let unit = validate.units[2].clone();
-    let located = residual::locate(&d.uv, &ev_base, dt, noise, &unit);
+    let located = residual::locate(&d.uv, &ev_base, dv, noise, &unit);
     let baseline = summary(&base, &d, &boot, opts.seed);
 
     let base_out = [base.out_t.clone(), base.out_v.clone()];
@@ -2010,7 +2004,7 @@ pub fn diagnose_with_tests(
         y: [train.y.clone(), validate.y.clone()],
         baseline: base_out,
         final_model: [current.out_t.clone(), current.out_v.clone()],
-        dt,
+        dt: [dt, dv],
         final_label: current_summary.model.clone(),
     };
     let nuisances = {
@@ -2042,6 +2036,7 @@ pub fn diagnose_with_tests(
         validate: validate.name.clone(),
         unit,
         samples: [train.len(), validate.len()],
+        sampling_intervals_s: [dt, dv],
         noise_floor: noise,
         noise_floor_settled: floor_settled,
         exponent: n_choice,

@@ -16,11 +16,26 @@ pub fn text(d: &Diagnosis) -> String {
         format!(" {}", d.unit)
     };
     let f = |x: f64| sig(x, 3);
+    // An interval without trailing zeros (0.001, 0.0025).
+    let step = |x: f64| {
+        let t = sig(x, 4);
+        if t.contains('.') && !t.contains('e') {
+            t.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            t
+        }
+    };
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "diagnosis of {} ({} samples) against {} ({} samples), model {}",
-        d.train, d.samples[0], d.validate, d.samples[1], d.model
+        "diagnosis of {} ({} samples every {} s) against {} ({} samples every {} s), model {}",
+        d.train,
+        d.samples[0],
+        step(d.sampling_intervals_s[0]),
+        d.validate,
+        d.samples[1],
+        step(d.sampling_intervals_s[1]),
+        d.model
     );
     let _ = writeln!(
         s,
@@ -312,9 +327,9 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
             &unit(2, "mean residual"),
             (false, false),
         )?;
-        let sb = residual::spectra(&s.u[i], &eb, s.dt, 1024);
-        let sf = residual::spectra(&s.u[i], &ef, s.dt, 1024);
-        let floor = 2.0 * d.noise_floor * d.noise_floor * s.dt;
+        let sb = residual::spectra(&s.u[i], &eb, s.dt[i], 1024);
+        let sf = residual::spectra(&s.u[i], &ef, s.dt[i], 1024);
+        let floor = 2.0 * d.noise_floor * d.noise_floor * s.dt[i];
         let psd = |sp: &residual::Spectra| -> Vec<(f64, f64)> {
             sp.freq
                 .iter()

@@ -301,8 +301,7 @@ mod tests {
         let dt = 0.005;
         let record = |spec: &str, seconds: f64, seed: u64| {
             let u = Signal::parse(spec).unwrap().sample(dt, seconds);
-            let y = twin::simulate(&twin, &u, dt, seed);
-            Recording::uniform("twin", dt, u, y).unwrap()
+            twin::recording(&twin, "twin", u, dt, seed).unwrap()
         };
         let train = record("sine:freq=1,amp=2.3,offset=2.35", 8.0, 1);
         let validate = record("sine:freq=0.6,amp=2,offset=2.35", 8.0, 2);

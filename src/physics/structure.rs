@@ -957,6 +957,51 @@ impl Structure {
             .collect()
     }
 
+    /// The same model for a record sampled every `dt`: the data scales of the training
+    /// record kept (so every parameter means the same), its linear blocks and integrators
+    /// discretised for `dt` (the models are continuous-time).
+    pub fn at_interval(&self, dt: f64) -> Structure {
+        Structure::with_forms(
+            &self.parts(),
+            self.fixed_n,
+            Context { dt, ..self.ctx },
+            self.placement,
+        )
+    }
+
+    /// `theta` of this structure as the parameters of `to`, the same model at another
+    /// sampling interval ([`Structure::at_interval`]): times counted in samples (a delay,
+    /// the sub-sample timing) are rescaled to `to`'s samples; a mode or drive filter at or
+    /// above `to`'s Nyquist frequency is off there (a frequency its samples cannot hold,
+    /// whose response over the band they hold is that of a wire up to a small phase); the
+    /// rest is in physical units and carried unchanged.
+    pub fn carry(&self, theta: &[f64], to: &Structure) -> Vec<f64> {
+        let ratio = self.ctx.dt / to.ctx.dt;
+        to.specs
+            .iter()
+            .map(|s| {
+                let Some(i) = self.specs.iter().position(|m| m.name == s.name) else {
+                    return s.neutral;
+                };
+                let x = theta[i];
+                let from = &self.specs[i];
+                match s.name {
+                    "delay_samples" | "timing_samples" => x * ratio,
+                    "mode_log10_hz" | "mode2_log10_hz" | "lag2_log10_hz" | "fb_log10_hz"
+                        if from.neutral == from.upper =>
+                    {
+                        if x >= from.upper - 1e-9 || x >= s.upper {
+                            s.upper
+                        } else {
+                            x
+                        }
+                    }
+                    _ => x,
+                }
+            })
+            .collect()
+    }
+
     fn shape(&self, theta: &[f64]) -> Shape {
         let mut sh = Shape {
             s: 10f64.powf(-0.5),
@@ -2167,6 +2212,61 @@ pub(crate) mod tests {
     use super::*;
     use crate::physics::bouc_wen;
     use crate::physics::twin::{self, TwinConfig};
+
+    /// A model carried to half the sampling interval is the same continuous-time model: a
+    /// mode, a delay counted in samples and a drive filter give the same output at the
+    /// shared instants, up to the discretisation of the smooth drive.
+    #[test]
+    fn a_model_carried_to_another_interval_is_the_same_model() {
+        let dt = 1e-3;
+        let u = sine(2000, 3.0, dt);
+        let parts = [
+            (Effect::Delay, Form::Transport),
+            (Effect::InputLag, Form::SecondOrder),
+            (Effect::Dynamics, Form::OneMode),
+        ];
+        let ctx = Context::from_training(&u, dt);
+        let st = Structure::with_forms(&parts, Some(1.0), ctx, Placement::After);
+        let theta = theta_with(
+            &st,
+            &[
+                ("delay_samples", 3.0),
+                ("lag2_log10_hz", 80f64.log10()),
+                ("mode_log10_hz", 40f64.log10()),
+                ("mode_log10_zeta", 0.1f64.log10()),
+            ],
+        );
+        let mut coef = vec![0.0; st.linear_names().len()];
+        coef[0] = 1.0;
+        coef[2] = 0.5;
+        let fine = st.at_interval(dt / 2.0);
+        let carried = st.carry(&theta, &fine);
+        let at = |name: &str| fine.specs().iter().position(|s| s.name == name).unwrap();
+        assert_eq!(carried[at("delay_samples")], 6.0);
+        assert_eq!(carried[at("mode_log10_hz")], 40f64.log10());
+        let (coarse_out, _) = st.simulate(&theta, &coef, &u);
+        let (fine_out, _) = fine.simulate(&carried, &coef, &sine(4000, 3.0, dt / 2.0));
+        // After the start-up transient, at the shared instants.
+        let worst = (200..2000)
+            .map(|k| (coarse_out[k] - fine_out[2 * k]).abs())
+            .fold(0.0, f64::max);
+        let span = coarse_out.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(worst < 0.006 * span, "worst {worst} of {span}");
+        // Back to the training interval: the same parameters.
+        let back = fine.carry(&carried, &st);
+        for (a, b) in back.iter().zip(&theta) {
+            assert!((a - b).abs() < 1e-12);
+        }
+        // A mode above a coarser record's Nyquist frequency is off there.
+        let slow = st.at_interval(0.02);
+        let off = st.carry(&theta, &slow);
+        let m = slow
+            .specs()
+            .iter()
+            .position(|s| s.name == "mode_log10_hz")
+            .unwrap();
+        assert_eq!(off[m], slow.specs()[m].upper);
+    }
 
     fn sine(n: usize, f: f64, dt: f64) -> Vec<f64> {
         (0..n)
