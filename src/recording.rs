@@ -821,8 +821,8 @@ impl Recording {
                 let ratio = step / grid.step;
                 let what = if ratio.round() >= 2.0 && (ratio - ratio.round()).abs() < 0.1 {
                     match ratio.round() as usize - 1 {
-                        1 => format!("a gap: the step is {ratio:.2} steps (a missing sample)"),
-                        m => format!("a gap: the step is {ratio:.2} steps ({m} missing samples)"),
+                        1 => format!("a gap of {ratio:.2} steps: a missing sample"),
+                        m => format!("a gap of {ratio:.2} steps: {m} missing samples"),
                     }
                 } else if (step - grid.step).abs() > 2.0 * tol {
                     format!("irregular sampling: the step is {ratio:.4} steps")
@@ -1377,10 +1377,7 @@ mod tests {
             // Row i is on line i + 2: the sample after the gap is row `missing`.
             let line = missing + 2;
             let m = refusal(&text, &c, line);
-            assert!(
-                m.contains("a gap: the step is 2.00 steps (a missing sample)"),
-                "{m}"
-            );
+            assert!(m.contains("(a gap of 2.00 steps: a missing sample)"), "{m}");
             assert!(m.contains(&format!("on line {}", line - 1)), "{m}");
             assert!(
                 m.contains("step 0.01 s, a robust fit of the 39 stamps"),
@@ -1407,7 +1404,7 @@ mod tests {
         });
         let m = refusal(&text, &c, 12);
         assert!(
-            m.contains("the step is 4.00 steps (3 missing samples)"),
+            m.contains("(a gap of 4.00 steps: 3 missing samples)"),
             "{m}"
         );
         let text = table(20, |k| {
@@ -1569,6 +1566,61 @@ mod tests {
     fn std_dev(v: &[f64]) -> f64 {
         let m = v.iter().sum::<f64>() / v.len() as f64;
         (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt()
+    }
+
+    #[test]
+    fn every_real_recording_loads_without_a_flag() {
+        // (file, columns, samples, step): the P-885 stack, the CubeSpec mirror (each
+        // piezo to its own mirror point), the Bouc-Wen training set; the MR damper and the
+        // benchmark's test sets have their own tests.
+        let mut files = vec![
+            (
+                "pea_p885_dbo/dbo_identification_1Hz_sine.csv".to_string(),
+                "t_s,u_V,y_um".to_string(),
+                8027,
+                0.005,
+            ),
+            (
+                "pea_p885_dbo/dbo_test_ramped_sine_with_holds.csv".into(),
+                "t_s,u_V,y_um".into(),
+                14155,
+                0.005,
+            ),
+            (
+                "boucwen-benchmark/train_multisine_forgione.csv".into(),
+                "t_s,u_N,y_m".into(),
+                40960,
+                1.0 / 750.0,
+            ),
+        ];
+        for level in ["100", "200", "300"] {
+            for (set, i) in [("train_r0", 1), ("train_r2", 2), ("test_r0", 3)] {
+                files.push((
+                    format!("fsm_cubespec_piezo/fsm_{level}mV_{set}.csv"),
+                    format!("t_s,u{i}_V,y{i}_um"),
+                    16384,
+                    1.0 / 6400.0,
+                ));
+            }
+        }
+        for (rel, columns, n, dt) in files {
+            let Some(p) = real(&rel) else {
+                return;
+            };
+            let (r, notes) =
+                Recording::read_csv_noted(&p, &cols(&columns), &ReadOptions::default())
+                    .unwrap_or_else(|e| panic!("{e}"));
+            eprintln!(
+                "{rel}: {} samples, dt {} s, notes {notes:?}",
+                r.len(),
+                r.dt()
+            );
+            assert_eq!(r.len(), n, "{rel}");
+            assert!((r.dt() / dt - 1.0).abs() < 1e-9, "{rel}: dt {}", r.dt());
+            // Exactly printed (or only rounded) uniform stamps: nothing to say.
+            assert!(notes.is_empty(), "{rel}: {notes:?}");
+            assert!(std_dev(&r.y) > 0.0 && std_dev(&r.u) > 0.0, "{rel}");
+        }
     }
 
     #[test]

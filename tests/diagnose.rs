@@ -298,3 +298,121 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
         assert!(!dir.path().join("refused").exists());
     }
 }
+
+#[test]
+fn command_reads_lab_files_and_resamples_on_request() {
+    // The training record as lab software writes it: `;`-separated, decimal commas, time
+    // from 1234.5 s with 2e-6 s jitter; and with a sample left out (no jitter).
+    let dir = tempfile::tempdir().unwrap();
+    let kind = proof::kinds()
+        .into_iter()
+        .find(|k| k.name() == "delay")
+        .unwrap();
+    let (t, v) = proof::generate(&kind, 1, 2.0).unwrap();
+    let columns = optbench::recording::Columns::parse("t_s,u_V,y_mm").unwrap();
+    t.write_csv(&dir.path().join("train.csv"), &columns)
+        .unwrap();
+    v.write_csv(&dir.path().join("validate.csv"), &columns)
+        .unwrap();
+    let lab = |skip: Option<usize>, jitter: f64| {
+        let comma = |x: f64| x.to_string().replace('.', ",");
+        let mut s = String::from("t_s;u_V;y_mm\n");
+        for k in (0..t.len()).filter(|k| Some(*k) != skip) {
+            let time = 1234.5 + t.t[k] + jitter * (0.7 * k as f64).sin();
+            s += &format!("{};{};{}\n", comma(time), comma(t.u[k]), comma(t.y[k]));
+        }
+        s
+    };
+    std::fs::write(dir.path().join("lab.csv"), lab(None, 2e-6)).unwrap();
+    std::fs::write(dir.path().join("gap.csv"), lab(Some(700), 0.0)).unwrap();
+    let run = |train: &str, extra: &[&str], out: &str| {
+        let mut a = vec![
+            "diagnose",
+            "--train",
+            train,
+            "--validate",
+            "validate.csv",
+            "--columns",
+            "t_s,u_V,y_mm",
+            "--model",
+            "bouc-wen-n1",
+            "--effects",
+            "delay,input-lag",
+            "--bootstrap",
+            "3",
+            "--out",
+            out,
+        ];
+        a.extend(extra);
+        let o = optbench(&a, dir.path());
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    // The diagnosis without its wall time and training file name; the timing offset (half
+    // a sample of the zero-order hold) kept apart, as the fitted step of jittered stamps
+    // differs from the true one by parts in 10^9.
+    let diagnosis = |out: &str| {
+        let mut j: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(dir.path().join(out).join("diagnosis.json")).unwrap(),
+        )
+        .unwrap();
+        let o = j.as_object_mut().unwrap();
+        for key in ["wall_s", "train"] {
+            o.remove(key);
+        }
+        let mut offsets = Vec::new();
+        for set in ["baseline", "final"] {
+            let params = j[set]["params"].as_object_mut().unwrap();
+            offsets.extend(params.remove("timing_offset_s").and_then(|v| v.as_f64()));
+        }
+        (j, offsets)
+    };
+    let (code, err) = run("train.csv", &[], "plain");
+    assert_eq!(code, Some(0), "{err}");
+    // Time offset, jitter and the file's format change nothing in the diagnosis.
+    let (code, err) = run("lab.csv", &[], "lab");
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains("note: ./lab.csv: time stamps jitter by up to 2.0"),
+        "{err}"
+    );
+    let ((lab, lab_offsets), (plain, plain_offsets)) = (diagnosis("lab"), diagnosis("plain"));
+    let strip = |mut j: serde_json::Value| {
+        j["nuisances"]
+            .as_object_mut()
+            .unwrap()
+            .remove("timing_offset_s");
+        j
+    };
+    assert_eq!(strip(lab), strip(plain));
+    for (a, b) in lab_offsets.iter().zip(&plain_offsets) {
+        assert!((a / b - 1.0).abs() < 1e-7, "{a} vs {b}");
+    }
+    let (code, err) = run("lab.csv", &["--delimiter", ","], "refused");
+    assert_eq!(code, Some(2));
+    assert!(
+        err.contains("(columns: t_s;u_V;y_mm, separated by ',')"),
+        "{err}"
+    );
+    // A missing sample: refused at the sample after it, or resampled on request.
+    let (code, err) = run("gap.csv", &[], "refused");
+    assert_eq!(code, Some(2));
+    assert!(err.contains("./gap.csv:702: time column 't_s'"), "{err}");
+    assert!(
+        err.contains("a gap of 2.00 steps") && err.contains("--resample"),
+        "{err}"
+    );
+    assert!(!dir.path().join("refused").exists());
+    let (code, err) = run("gap.csv", &["--resample"], "gap");
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains("resampled: 2000 samples, step 0.001 s, largest gap 0.002 s at line 702"),
+        "{err}"
+    );
+    assert_eq!(
+        diagnosis("gap").0["samples"],
+        diagnosis("plain").0["samples"]
+    );
+}
