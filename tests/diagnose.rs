@@ -416,3 +416,65 @@ fn command_reads_lab_files_and_resamples_on_request() {
         diagnosis("plain").0["samples"]
     );
 }
+
+#[test]
+fn command_handles_a_record_starting_in_motion_and_one_with_long_rests() {
+    // Training starts mid-swing at t = 0.3 s; validation holds the input for 1.5 s at a
+    // time (the twin, written by `simulate`).
+    let dir = tempfile::tempdir().unwrap();
+    for (signal, seconds, out) in [
+        ("sine:freq=2,amp=1.5,offset=2.35", "3", "sine"),
+        ("steps:levels=1;3.6;1.8;3,hold=1.5", "6", "rests"),
+    ] {
+        let o = optbench(
+            &[
+                "simulate",
+                "--signal",
+                signal,
+                "--duration",
+                seconds,
+                "--columns",
+                "t_s,u_V,y_mm",
+                "--out",
+                out,
+            ],
+            dir.path(),
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let sine = std::fs::read_to_string(dir.path().join("sine/twin.csv")).unwrap();
+    let lines: Vec<&str> = sine.lines().collect();
+    let motion = [&lines[..1], &lines[301..]].concat().join("\n");
+    assert!(lines[301].starts_with("0.3,"), "{}", lines[301]);
+    std::fs::write(dir.path().join("motion.csv"), motion).unwrap();
+    let o = optbench(
+        &[
+            "diagnose",
+            "--train",
+            "motion.csv",
+            "--validate",
+            "rests/twin.csv",
+            "--columns",
+            "t_s,u_V,y_mm",
+            "--model",
+            "bouc-wen-n1",
+            "--effects",
+            "delay,creep",
+            "--bootstrap",
+            "3",
+            "--out",
+            "d",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("d/diagnosis.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["samples"], serde_json::json!([2700, 6000]));
+    // The initial hysteretic state is fitted: the record did not start at rest.
+    let h0 = json["final"]["params"]["h0"].as_f64().unwrap();
+    assert!(h0.is_finite() && h0.abs() > 1e-3, "h0 {h0}");
+    let rmse = json["final"]["validate_rmse"].as_f64().unwrap();
+    assert!(rmse.is_finite() && rmse > 0.0, "{rmse}");
+}
