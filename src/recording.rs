@@ -890,7 +890,7 @@ impl Recording {
                 Recording::new(name, g, u2, y2)?
             }
             None => {
-                let centre = 0.5 * (lo + hi);
+                let grid_t = || (0..n).map(|k| grid.at(k) + 0.5 * (lo + hi)).collect();
                 let jitter = (hi - lo) / 2.0;
                 if jitter > rounding {
                     notes.push(format!(
@@ -901,13 +901,13 @@ impl Recording {
                         100.0 * jitter / grid.step,
                         sig(grid.step, 9)
                     ));
-                }
-                match Recording::new(name.clone(), t, u.clone(), y.clone()) {
-                    Ok(r) => r,
-                    // Uniform only within the tolerance: the grid the stamps denote.
-                    Err(_) => {
-                        let g = (0..n).map(|k| grid.at(k) + centre).collect();
-                        Recording::new(name, g, u, y)?
+                    Recording::new(name, grid_t(), u, y)?
+                } else {
+                    // Exactly printed stamps are kept; rounded ones become the grid they
+                    // denote.
+                    match Recording::new(name.clone(), t, u.clone(), y.clone()) {
+                        Ok(r) => r,
+                        Err(_) => Recording::new(name, grid_t(), u, y)?,
                     }
                 }
             }
@@ -915,6 +915,7 @@ impl Recording {
         rec.units = cols.map(|c| unit_from_name(c.name));
         Ok((rec, notes))
     }
+
     /// Writes the recording as CSV with a header of `columns`' names and every number in
     /// shortest round-trip form, so [`Recording::read_csv`] gives back identical samples.
     /// Atomic: the file is either the old or the new version.
