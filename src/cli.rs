@@ -164,6 +164,14 @@ pub struct FitArgs {
     /// Time, input and output column names of CSV recordings.
     #[arg(long, default_value = "t,u,y")]
     pub columns: String,
+    /// CSV recordings with gaps or irregular time stamps are linearly interpolated onto a
+    /// uniform grid (jitter within 1 % of the step is accepted without it).
+    #[arg(long)]
+    pub resample: bool,
+    /// Column separator of CSV recordings: ',', ';', tab or whitespace (default: detected;
+    /// decimal commas are detected).
+    #[arg(long)]
+    pub delimiter: Option<crate::recording::Delimiter>,
     /// Function evaluations (default: the seed's 200 individuals x 150 iterations).
     #[arg(long, default_value_t = 30_000)]
     pub budget: u64,
@@ -248,6 +256,8 @@ fn dispatch(cli: Cli) -> Result<()> {
                     recording: a.recording,
                     validate: a.validate,
                     columns: a.columns,
+                    resample: a.resample,
+                    delimiter: a.delimiter,
                     budget: a.budget,
                     seed: a.seed,
                     model_params: a.params,

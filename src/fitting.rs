@@ -26,6 +26,10 @@ pub struct FitRequest {
     pub recording: String,
     pub validate: Option<String>,
     pub columns: String,
+    /// Interpolate CSV recordings with gaps or irregular time onto a uniform grid.
+    pub resample: bool,
+    /// Column separator of CSV recordings (`None`: detected).
+    pub delimiter: Option<crate::recording::Delimiter>,
     pub budget: u64,
     pub seed: u64,
     /// Extra model parameters (`key=value`, values in TOML syntax).
@@ -111,6 +115,12 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
         "columns".into(),
         (toml::Value::String(req.columns.clone()), 0),
     );
+    if req.resample {
+        given.insert("resample".into(), (toml::Value::Boolean(true), 0));
+    }
+    if let Some(d) = req.delimiter {
+        given.insert("delimiter".into(), (toml::Value::String(d.to_string()), 0));
+    }
     pairs("--param", &req.model_params, &mut given)?;
     let params = Params::validate(
         kind.params,

@@ -316,6 +316,15 @@ impl Params {
         }
     }
 
+    /// A boolean parameter with [`Default::Derived`].
+    pub fn opt_bool(&self, name: &str) -> Option<bool> {
+        match self.get(name) {
+            Some(Value::Bool(b)) => Some(*b),
+            None => None,
+            other => panic!("parameter {name} is not a boolean: {other:?}"),
+        }
+    }
+
     /// A choice or text parameter.
     pub fn str(&self, name: &str) -> &str {
         match self.get(name) {

@@ -15,7 +15,7 @@ use crate::optimizer::pso::PsoConfig;
 use crate::optimizer::random_search::RandomSearchConfig;
 use crate::params::{Default as D, Kind, Params, Spec, probability};
 use crate::physics::rbf::{Mode, Narx, RbfNet};
-use crate::recording::Recording;
+use crate::recording::{Delimiter, ReadOptions, Recording};
 use std::path::Path;
 use std::sync::Arc;
 
@@ -124,6 +124,18 @@ macro_rules! recording_params {
                 help: "time, input and output column names of CSV recordings",
             },
             Spec {
+                name: "resample",
+                kind: Kind::Bool,
+                default: D::Derived("false"),
+                help: "CSV recordings with gaps or irregular time stamps are linearly interpolated onto a uniform grid (jitter within 1 % of the step needs no resampling)",
+            },
+            Spec {
+                name: "delimiter",
+                kind: Kind::Text,
+                default: D::Derived("detected"),
+                help: "column separator of CSV recordings: \",\", \";\", tab or whitespace",
+            },
+            Spec {
                 name: "duration",
                 kind: Kind::Float { min: f64::MIN_POSITIVE, max: f64::INFINITY },
                 default: D::Derived("a chirp's own duration"),
@@ -168,9 +180,16 @@ fn recordings(p: &Params) -> Result<(Recording, Vec<(String, Recording)>), Error
         twin: p.str("twin").to_string(),
         seed: p.int("seed") as u64,
     };
+    let read = ReadOptions {
+        resample: p.opt_bool("resample").unwrap_or(false),
+        delimiter: match p.opt_str("delimiter") {
+            Some(d) => Delimiter::parse(d).map_err(|e| p.error("delimiter", e))?,
+            None => Delimiter::Auto,
+        },
+    };
     let load = |key: &str, spec: &str, duration: Option<f64>| -> Result<Recording, Error> {
         Source::parse(spec, &base, p.str("columns"), sim(duration))
-            .and_then(|s| s.load())
+            .and_then(|s| s.read_with(read).load())
             .map_err(|e| p.error(key, e))
     };
     let mut train = load("recording", p.str("recording"), p.opt_float("duration"))?;

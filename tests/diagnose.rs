@@ -344,3 +344,206 @@ fn records_at_different_rates_diagnose_together() {
     assert!(ratio < 1.2, "validation {ratio}x the noise floor");
     assert!(d.baseline.validate_rmse > 5.0 * d.noise_floor);
 }
+
+#[test]
+fn command_reads_lab_files_and_resamples_on_request() {
+    // The training record as lab software writes it: `;`-separated, decimal commas, time
+    // from 1234.5 s with 2e-6 s jitter; and with a sample left out (no jitter).
+    let dir = tempfile::tempdir().unwrap();
+    let kind = proof::kinds()
+        .into_iter()
+        .find(|k| k.name() == "delay")
+        .unwrap();
+    let (t, v) = proof::generate(&kind, 1, 2.0).unwrap();
+    let columns = optbench::recording::Columns::parse("t_s,u_V,y_mm").unwrap();
+    t.write_csv(&dir.path().join("train.csv"), &columns)
+        .unwrap();
+    v.write_csv(&dir.path().join("validate.csv"), &columns)
+        .unwrap();
+    let lab = |skip: Option<usize>, jitter: f64| {
+        let comma = |x: f64| x.to_string().replace('.', ",");
+        let mut s = String::from("t_s;u_V;y_mm\n");
+        for k in (0..t.len()).filter(|k| Some(*k) != skip) {
+            let time = 1234.5 + t.t[k] + jitter * (0.7 * k as f64).sin();
+            s += &format!("{};{};{}\n", comma(time), comma(t.u[k]), comma(t.y[k]));
+        }
+        s
+    };
+    std::fs::write(dir.path().join("lab.csv"), lab(None, 2e-6)).unwrap();
+    std::fs::write(dir.path().join("gap.csv"), lab(Some(700), 0.0)).unwrap();
+    let run = |train: &str, extra: &[&str], out: &str| {
+        let mut a = vec![
+            "diagnose",
+            "--train",
+            train,
+            "--validate",
+            "validate.csv",
+            "--columns",
+            "t_s,u_V,y_mm",
+            "--model",
+            "bouc-wen-n1",
+            "--effects",
+            "delay,input-lag",
+            "--bootstrap",
+            "3",
+            "--out",
+            out,
+        ];
+        a.extend(extra);
+        let o = optbench(&a, dir.path());
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    // The diagnosis without its wall time and training file name; the timing offset (half
+    // a sample of the zero-order hold) kept apart, as the fitted step of jittered stamps
+    // differs from the true one by parts in 10^9.
+    let diagnosis = |out: &str| {
+        let mut j: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(dir.path().join(out).join("diagnosis.json")).unwrap(),
+        )
+        .unwrap();
+        let o = j.as_object_mut().unwrap();
+        for key in ["wall_s", "train"] {
+            o.remove(key);
+        }
+        let mut offsets = Vec::new();
+        for set in ["baseline", "final"] {
+            let params = j[set]["params"].as_object_mut().unwrap();
+            offsets.extend(params.remove("timing_offset_s").and_then(|v| v.as_f64()));
+        }
+        (j, offsets)
+    };
+    let (code, err) = run("train.csv", &[], "plain");
+    assert_eq!(code, Some(0), "{err}");
+    // Time offset, jitter and the file's format change nothing in the diagnosis.
+    let (code, err) = run("lab.csv", &[], "lab");
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains("note: ./lab.csv: time stamps jitter by up to 2.0"),
+        "{err}"
+    );
+    let ((lab, lab_offsets), (plain, plain_offsets)) = (diagnosis("lab"), diagnosis("plain"));
+    // The fitted step and what follows from it (the timing offset in seconds, wherever it
+    // is reported) agree to parts in 10^9.
+    let strip = |mut j: serde_json::Value| {
+        j["nuisances"]
+            .as_object_mut()
+            .unwrap()
+            .remove("timing_offset_s");
+        let steps = j
+            .as_object_mut()
+            .unwrap()
+            .remove("sampling_intervals_s")
+            .unwrap();
+        for s in steps.as_array().unwrap() {
+            assert!((s.as_f64().unwrap() / 1e-3 - 1.0).abs() < 1e-7, "{steps}");
+        }
+        for set in ["baseline", "final"] {
+            for f in j[set]["plausibility"].as_array_mut().unwrap() {
+                if f["parameter"] == "timing_offset_s" {
+                    f.as_object_mut().unwrap().remove("value");
+                }
+            }
+        }
+        j
+    };
+    let band = |j: &serde_json::Value| j["excited_band_hz"].as_f64().unwrap();
+    assert!((band(&lab) / band(&plain) - 1.0).abs() < 1e-7);
+    let (mut lab, mut plain) = (strip(lab), strip(plain));
+    for j in [&mut lab, &mut plain] {
+        j.as_object_mut().unwrap().remove("excited_band_hz");
+    }
+    assert_eq!(lab, plain);
+    for (a, b) in lab_offsets.iter().zip(&plain_offsets) {
+        assert!((a / b - 1.0).abs() < 1e-7, "{a} vs {b}");
+    }
+    let (code, err) = run("lab.csv", &["--delimiter", ","], "refused");
+    assert_eq!(code, Some(2));
+    assert!(
+        err.contains("(columns: t_s;u_V;y_mm, separated by ',')"),
+        "{err}"
+    );
+    // A missing sample: refused at the sample after it, or resampled on request.
+    let (code, err) = run("gap.csv", &[], "refused");
+    assert_eq!(code, Some(2));
+    assert!(err.contains("./gap.csv:702: time column 't_s'"), "{err}");
+    assert!(
+        err.contains("a gap of 2.00 steps") && err.contains("--resample"),
+        "{err}"
+    );
+    assert!(!dir.path().join("refused").exists());
+    let (code, err) = run("gap.csv", &["--resample"], "gap");
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains("resampled: 2000 samples, step 0.001 s, largest gap 0.002 s at line 702"),
+        "{err}"
+    );
+    assert_eq!(
+        diagnosis("gap").0["samples"],
+        diagnosis("plain").0["samples"]
+    );
+}
+
+#[test]
+fn command_handles_a_record_starting_in_motion_and_one_with_long_rests() {
+    // Training starts mid-swing at t = 0.3 s; validation holds the input for 1.5 s at a
+    // time (the twin, written by `simulate`).
+    let dir = tempfile::tempdir().unwrap();
+    for (signal, seconds, out) in [
+        ("sine:freq=2,amp=1.5,offset=2.35", "3", "sine"),
+        ("steps:levels=1;3.6;1.8;3,hold=1.5", "6", "rests"),
+    ] {
+        let o = optbench(
+            &[
+                "simulate",
+                "--signal",
+                signal,
+                "--duration",
+                seconds,
+                "--columns",
+                "t_s,u_V,y_mm",
+                "--out",
+                out,
+            ],
+            dir.path(),
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let sine = std::fs::read_to_string(dir.path().join("sine/twin.csv")).unwrap();
+    let lines: Vec<&str> = sine.lines().collect();
+    let motion = [&lines[..1], &lines[301..]].concat().join("\n");
+    assert!(lines[301].starts_with("0.3,"), "{}", lines[301]);
+    std::fs::write(dir.path().join("motion.csv"), motion).unwrap();
+    let o = optbench(
+        &[
+            "diagnose",
+            "--train",
+            "motion.csv",
+            "--validate",
+            "rests/twin.csv",
+            "--columns",
+            "t_s,u_V,y_mm",
+            "--model",
+            "bouc-wen-n1",
+            "--effects",
+            "delay,creep",
+            "--bootstrap",
+            "3",
+            "--out",
+            "d",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("d/diagnosis.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["samples"], serde_json::json!([2700, 6000]));
+    // The initial hysteretic state is fitted: the record did not start at rest.
+    let h0 = json["final"]["params"]["h0"].as_f64().unwrap();
+    assert!(h0.is_finite() && h0.abs() > 1e-3, "h0 {h0}");
+    let rmse = json["final"]["validate_rmse"].as_f64().unwrap();
+    assert!(rmse.is_finite() && rmse > 0.0, "{rmse}");
+}

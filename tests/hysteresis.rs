@@ -13,7 +13,7 @@ use optbench::optimizer::gradient::GradientConfig;
 use optbench::optimizer::pso::PsoConfig;
 use optbench::physics::rbf::{Mode, Narx, RbfNet};
 use optbench::physics::twin::TwinConfig;
-use optbench::recording::{Recording, data_dir};
+use optbench::recording::{Columns, Recording, data_dir};
 use std::path::Path;
 use std::sync::Arc;
 
@@ -320,4 +320,128 @@ fn fit_command_writes_numbers_and_figures() {
     );
     assert_eq!(bad.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("missing.csv: no such file"));
+}
+
+/// `rec` written as lab software does: `;`-separated with decimal commas, time from `t0`
+/// printed with 9 decimals and off the grid by up to `jitter` s; `skip` leaves a sample
+/// out (a gap).
+fn lab_csv(rec: &Recording, path: &Path, t0: f64, jitter: f64, skip: Option<usize>) {
+    let comma = |v: f64| v.to_string().replace('.', ",");
+    let mut s = String::from("t_s;u_V;y_mm\n");
+    for k in (0..rec.len()).filter(|k| Some(*k) != skip) {
+        let t = t0 + rec.t[k] + jitter * (0.7 * k as f64).sin();
+        s += &format!(
+            "{};{};{}\n",
+            format!("{t:.9}").replace('.', ","),
+            comma(rec.u[k]),
+            comma(rec.y[k])
+        );
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+#[test]
+fn fit_and_suites_read_lab_files_and_resample_on_request() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = twin(SINE_1HZ, 1.0, "");
+    let columns = Columns::parse("t_s,u_V,y_mm").unwrap();
+    rec.write_csv(&dir.path().join("plain.csv"), &columns)
+        .unwrap();
+    lab_csv(&rec, &dir.path().join("lab.csv"), 1234.5, 2e-6, None);
+    lab_csv(&rec, &dir.path().join("gap.csv"), 0.0, 0.0, Some(500));
+    let fit = |file: &str, extra: &[&str], out: &str| {
+        let mut a = vec![
+            "fit",
+            "--recording",
+            file,
+            "--columns",
+            "t_s,u_V,y_mm",
+            "--model",
+            "bouc-wen",
+            "--optimizer",
+            "pso",
+            "--budget",
+            "200",
+            "--out",
+            out,
+        ];
+        a.extend(extra);
+        let o = optbench(&a, dir.path());
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let fitted = |out: &str| {
+        let j: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join(out).join("fit.json")).unwrap())
+                .unwrap();
+        (j["cost"].clone(), j["params"].clone())
+    };
+    assert_eq!(fit("plain.csv", &[], "p").0, Some(0));
+    // Time offset, jitter, delimiter and decimal comma change nothing in the fit.
+    let (code, err) = fit("lab.csv", &[], "l");
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains("note: lab.csv: columns separated by ';', decimal comma"),
+        "{err}"
+    );
+    assert!(
+        err.contains("note: lab.csv: time stamps jitter by up to 2.0"),
+        "{err}"
+    );
+    assert_eq!(fitted("l"), fitted("p"));
+    let (code, err) = fit("lab.csv", &["--delimiter", ";"], "l2");
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(fitted("l2"), fitted("p"));
+    let (code, err) = fit("lab.csv", &["--delimiter", "tab"], "l3");
+    assert_eq!(code, Some(2));
+    assert!(
+        err.contains("lab.csv:1: no time column 't_s' (columns: t_s;u_V;y_mm, separated by tab)"),
+        "{err}"
+    );
+    // A missing sample: refused at the sample after it, or resampled on request.
+    let (code, err) = fit("gap.csv", &[], "g");
+    assert_eq!(code, Some(2));
+    assert!(
+        err.contains("gap.csv:502: time column 't_s': time 0.501 s is off the uniform grid"),
+        "{err}"
+    );
+    assert!(
+        err.contains("(a gap of 2.00 steps: a missing sample)") && err.contains("pass --resample"),
+        "{err}"
+    );
+    let resampled = "resampled: 1000 samples, step 0.001 s, largest gap 0.002 s at line 502";
+    let (code, err) = fit("gap.csv", &["--resample"], "g");
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains(&format!("note: gap.csv: {resampled}")),
+        "{err}"
+    );
+    // The suite keys.
+    let suite = "name = \"lab\"\nseed = 1\ntrials = 1\nbudget = 60\n\n[[objective]]\n\
+                 kind = \"bouc-wen\"\nid = \"gap\"\nrecording = \"gap.csv\"\n\
+                 columns = \"t_s,u_V,y_mm\"\ndelimiter = \";\"\nKEY\n\n\
+                 [[optimizer]]\nkind = \"pso\"\nid = \"PSO\"\n";
+    // An absolute path: the report reads the suite's copy in the results folder.
+    let gap = dir.path().join("gap.csv").display().to_string();
+    let suite = suite.replace("\"gap.csv\"", &format!("{gap:?}"));
+    let run = |key: &str, out: &str| {
+        std::fs::write(dir.path().join("lab.toml"), suite.replace("KEY", key)).unwrap();
+        let o = optbench(&["run", "lab.toml", "--out", out, "-q"], dir.path());
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let (code, err) = run("", "r1");
+    assert_ne!(code, Some(0));
+    assert!(
+        err.contains("gap.csv:502:") && err.contains("resample = true"),
+        "{err}"
+    );
+    let (code, err) = run("resample = true", "r2");
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains(resampled), "{err}");
+    assert!(dir.path().join("r2/report.md").exists());
 }

@@ -3,9 +3,9 @@
 
 use super::{Options, TestSet, diagnose_with_tests, proof, report};
 use crate::error::{Error, Result};
-use crate::objective::source::resolve_path;
+use crate::objective::source::{read_noting, resolve_path};
 use crate::physics::structure::{Effect, Hold};
-use crate::recording::{Columns, ReadOptions, Recording};
+use crate::recording::{Columns, Delimiter, ReadOptions, Recording};
 use crate::results::atomic_write;
 use std::path::PathBuf;
 
@@ -24,6 +24,13 @@ pub struct DiagnoseArgs {
     /// Time, input and output column names.
     #[arg(long, default_value = "t,u,y")]
     pub columns: String,
+    /// Records with gaps or irregular time stamps are linearly interpolated onto a uniform
+    /// grid (jitter within 1 % of the step is accepted without it).
+    #[arg(long)]
+    pub resample: bool,
+    /// Column separator: auto, ',', ';', tab or whitespace (decimal commas are detected).
+    #[arg(long, default_value = "auto")]
+    pub delimiter: Delimiter,
     /// Output folder (default: results/diagnose, or results/diagnose-proof with --proof).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -91,9 +98,9 @@ fn effects(spec: &Option<String>) -> Result<Vec<Effect>> {
         .collect()
 }
 
-fn read(path: &std::path::Path, columns: &Columns) -> Result<Recording> {
+fn read(path: &std::path::Path, columns: &Columns, read: &ReadOptions) -> Result<Recording> {
     let p = resolve_path(&path.to_string_lossy(), std::path::Path::new("."));
-    Recording::read_csv(&p, columns, &ReadOptions::default())
+    read_noting(&p, columns, read)
 }
 
 /// Runs the command; returns the text to print.
@@ -161,16 +168,20 @@ pub fn run(a: DiagnoseArgs) -> Result<String> {
         return Ok(format!("{md}\nwritten: {}\n", out.display()));
     }
     let columns = Columns::parse(&a.columns)?;
+    let ropts = ReadOptions {
+        resample: a.resample,
+        delimiter: a.delimiter,
+    };
     let (Some(t), Some(v)) = (&a.train, &a.validate) else {
         return Err(Error::Input("--train and --validate are required".into()));
     };
-    let train = read(t, &columns)?;
-    let validate = read(v, &columns)?;
+    let train = read(t, &columns, &ropts)?;
+    let validate = read(v, &columns, &ropts)?;
     let mut tests = Vec::new();
     for (paths, periodic) in [(&a.test, false), (&a.test_periodic, true)] {
         for p in paths {
             tests.push(TestSet {
-                recording: read(p, &columns)?,
+                recording: read(p, &columns, &ropts)?,
                 periodic,
             });
         }

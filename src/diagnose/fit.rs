@@ -247,8 +247,7 @@ impl Fitted {
     /// The same fitted model for a record sampled every `dt` ([`Structure::at_interval`],
     /// [`Structure::carry`]); itself when `dt` is its own.
     pub fn at_interval(&self, dt: f64) -> Fitted {
-        let own = self.structure.context().dt;
-        if ((dt - own) / own).abs() <= 1e-9 {
+        if same_interval(dt, self.structure.context().dt) {
             return self.clone();
         }
         let structure = self.structure.at_interval(dt);
@@ -511,6 +510,12 @@ fn distinct_starts(
 fn bic_gain(rec: &TrialRecord, samples: usize) -> f64 {
     let start_cost = rec.improvements.first().map_or(rec.best, |x| x.1);
     samples as f64 * (start_cost / rec.best).ln()
+}
+
+/// Whether two sampling intervals are one (within 1e-6: the step fitted to jittered or
+/// rounded time stamps differs from the true one by parts in 10^9).
+pub fn same_interval(a: f64, b: f64) -> bool {
+    ((a - b) / b).abs() <= 1e-6
 }
 
 /// Validation SSE/2 of a fitted model as a function of what belongs to the record only

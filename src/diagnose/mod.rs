@@ -377,7 +377,7 @@ impl Data {
         } else {
             (self.uv.clone(), yv.to_vec())
         };
-        let other_interval = ((self.dv - self.scope.dt) / self.scope.dt).abs() > 1e-9;
+        let other_interval = !fit::same_interval(self.dv, self.scope.dt);
         let f = f.at_interval(self.dv);
         let (theta, used) = fit::record_state_for(&f, &u, &y, 60, seed, other_interval);
         let (out, coef) = f.structure.simulate_on(&theta, &f.linear.coef, &u, &y);

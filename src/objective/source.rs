@@ -3,7 +3,7 @@
 //!
 //! - a CSV file: `$OPTBENCH_DATA/boucwen-benchmark/test_multisine.csv` (`$OPTBENCH_DATA`
 //!   expands to [`data_dir`]), or a path relative to the suite file's folder; columns are
-//!   picked by name;
+//!   picked by name, read with [`ReadOptions`] (suite keys `resample`, `delimiter`);
 //! - `twin:<signal>`: the piezo twin driven by a signal (see [`crate::signal`]), simulated
 //!   from a fixed noise seed, so a suite regenerates the same recording every time;
 //! - `eq318:<signal>`: the seed's numerical identification example (eq. 3.18).
@@ -42,9 +42,19 @@ impl Default for SimOptions {
 /// A parsed recording source.
 #[derive(Debug, Clone)]
 pub enum Source {
-    Csv { path: PathBuf, columns: Columns },
-    Twin { signal: Signal, opts: SimOptions },
-    Eq318 { signal: Signal, opts: SimOptions },
+    Csv {
+        path: PathBuf,
+        columns: Columns,
+        read: ReadOptions,
+    },
+    Twin {
+        signal: Signal,
+        opts: SimOptions,
+    },
+    Eq318 {
+        signal: Signal,
+        opts: SimOptions,
+    },
 }
 
 /// Expands a leading `$OPTBENCH_DATA` and resolves relative paths against `base`.
@@ -83,13 +93,27 @@ impl Source {
         Ok(Source::Csv {
             path: resolve_path(spec, base),
             columns: Columns::parse(columns)?,
+            read: ReadOptions::default(),
         })
     }
 
-    /// The recording (read, or simulated deterministically).
+    /// The source with `read` for a CSV file (simulated sources ignore it).
+    pub fn read_with(mut self, read: ReadOptions) -> Source {
+        if let Source::Csv { read: r, .. } = &mut self {
+            *r = read;
+        }
+        self
+    }
+
+    /// The recording (read, or simulated deterministically); what reading did to a file
+    /// (delimiter, jitter absorbed, resampling) is printed to stderr.
     pub fn load(&self) -> Result<Recording> {
         match self {
-            Source::Csv { path, columns } => {
+            Source::Csv {
+                path,
+                columns,
+                read,
+            } => {
                 if !path.exists() {
                     return Err(Error::Input(format!(
                         "{}: no such file (data sets are read from $OPTBENCH_DATA, now {})",
@@ -97,7 +121,7 @@ impl Source {
                         data_dir().display()
                     )));
                 }
-                Recording::read_csv(path, columns, &ReadOptions::default())
+                read_noting(path, columns, read)
             }
             Source::Twin { signal, opts } => {
                 let d = duration_of(signal, opts, "twin")?;
@@ -113,6 +137,16 @@ impl Source {
         }
     }
 }
+/// [`Recording::read_csv_noted`], its notes printed to stderr (where every command that
+/// reads recordings says what was done to them).
+pub fn read_noting(path: &Path, columns: &Columns, read: &ReadOptions) -> Result<Recording> {
+    let (rec, notes) = Recording::read_csv_noted(path, columns, read)?;
+    for n in notes {
+        eprintln!("note: {n}");
+    }
+    Ok(rec)
+}
+
 /// The twin driven by `u` (samples of `signal`), with the options' overrides and seed.
 fn twin_recording(signal: &Signal, u: Vec<f64>, opts: &SimOptions) -> Result<Recording> {
     let cfg = TwinConfig::parse_overrides(&opts.twin)?;
