@@ -90,6 +90,33 @@ impl Recording {
     }
 
     /// The samples `range` as a new recording.
+    /// The record without its first `seconds`: a record that starts in motion (a stage
+    /// stepped from rest to the first command as recording began) holds a start-up no model
+    /// of the actuator's steady behaviour is asked to explain. Refused if fewer than
+    /// [`MIN_SAMPLES`] samples would remain.
+    pub fn trim_start(&self, seconds: f64) -> Result<Self> {
+        if !(seconds.is_finite() && seconds >= 0.0) {
+            return Err(Error::Input(format!(
+                "--trim-start {seconds}: expected a number of seconds >= 0"
+            )));
+        }
+        let k = (seconds / self.dt() - 1e-9).ceil().max(0.0) as usize;
+        if k == 0 {
+            return Ok(self.clone());
+        }
+        if self.len() < k + MIN_SAMPLES {
+            return Err(Error::Input(format!(
+                "--trim-start {seconds}: {} has {} samples ({} s); at least {MIN_SAMPLES} must remain",
+                self.name,
+                self.len(),
+                self.len() as f64 * self.dt()
+            )));
+        }
+        let mut r = self.slice(k..self.len())?;
+        r.name = format!("{} (first {seconds} s left out)", self.name);
+        Ok(r)
+    }
+
     pub fn slice(&self, range: std::ops::Range<usize>) -> Result<Self> {
         let mut r = Self::new(
             format!("{}[{}..{}]", self.name, range.start, range.end),
@@ -979,6 +1006,26 @@ fn interpolate(t: &[f64], v: &[f64], at: &[f64]) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn trim_start_leaves_out_the_first_seconds() {
+        let r = Recording::uniform(
+            "r",
+            0.01,
+            vec![1.0; 1000],
+            (0..1000).map(f64::from).collect(),
+        )
+        .unwrap();
+        let t = r.trim_start(0.5).unwrap();
+        assert_eq!(t.len(), 950);
+        assert_eq!(t.y[0], 50.0);
+        assert!((t.t[0] - 0.5).abs() < 1e-12);
+        assert!(t.name.contains("first 0.5 s left out"));
+        assert_eq!(r.trim_start(0.0).unwrap(), r);
+        assert!(r.trim_start(9.95).is_err());
+        assert!(r.trim_start(-1.0).is_err());
+        assert!(r.trim_start(f64::NAN).is_err());
+    }
     use crate::harness::TrialSeed;
     use rand::RngExt;
 

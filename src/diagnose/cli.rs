@@ -31,6 +31,11 @@ pub struct DiagnoseArgs {
     /// Column separator: auto, ',', ';', tab or whitespace (decimal commas are detected).
     #[arg(long, default_value = "auto")]
     pub delimiter: Delimiter,
+    /// Seconds left out at the start of every record (training, validation, test): for
+    /// records that start in motion, e.g. a stage stepped from rest to the first command as
+    /// recording began (the report's 'starts in motion' finding suggests a value).
+    #[arg(long, default_value_t = 0.0)]
+    pub trim_start: f64,
     /// Output folder (default: results/diagnose, or results/diagnose-proof with --proof).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -175,13 +180,13 @@ pub fn run(a: DiagnoseArgs) -> Result<String> {
     let (Some(t), Some(v)) = (&a.train, &a.validate) else {
         return Err(Error::Input("--train and --validate are required".into()));
     };
-    let train = read(t, &columns, &ropts)?;
-    let validate = read(v, &columns, &ropts)?;
+    let train = read(t, &columns, &ropts)?.trim_start(a.trim_start)?;
+    let validate = read(v, &columns, &ropts)?.trim_start(a.trim_start)?;
     let mut tests = Vec::new();
     for (paths, periodic) in [(&a.test, false), (&a.test_periodic, true)] {
         for p in paths {
             tests.push(TestSet {
-                recording: read(p, &columns, &ropts)?,
+                recording: read(p, &columns, &ropts)?.trim_start(a.trim_start)?,
                 periodic,
             });
         }

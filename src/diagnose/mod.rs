@@ -1230,6 +1230,7 @@ fn round_ties(
     (0..pool.len())
         .filter(|&j| {
             j != named
+                && verdicts[j].passed
                 && pool[j].effects() != pool[named].effects()
                 && !pool[j].effects().iter().all(|&e| parent.has(e))
         })
@@ -1459,7 +1460,26 @@ pub fn diagnose_with_tests(
     evaluations += boot_evals;
     let ev_base: Vec<f64> = d.yv.iter().zip(&base.out_v).map(|(a, b)| a - b).collect();
     let unit = validate.units[2].clone();
-    let located = residual::locate(&d.uv, &ev_base, dv, noise, &unit);
+    let mut located = residual::locate(&d.uv, &ev_base, dv, noise, &unit);
+    let et_base: Vec<f64> = d.yt.iter().zip(&base.out_t).map(|(a, b)| a - b).collect();
+    for (record, e, step) in [("training", &et_base, dt), ("validation", &ev_base, dv)] {
+        if let Some((w, share, ri, ro)) = residual::start_transient(e, step, noise) {
+            let f = |x: f64| crate::report::table::sig(x, 3);
+            located.insert(
+                0,
+                residual::Located {
+                    place: "time".into(),
+                    detail: format!(
+                        "the {record} record starts in motion: its first {w} s hold {} % of the residual power (RMS {} {unit} against {} {unit} after): a start-up the model does not hold (--trim-start {w} leaves it out of every record)",
+                        f(100.0 * share),
+                        f(ri),
+                        f(ro)
+                    ),
+                    strength: ri / ro,
+                },
+            );
+        }
+    }
     let baseline = summary(&base, &d, &boot, opts.seed);
 
     let base_out = [base.out_t.clone(), base.out_v.clone()];

@@ -33,6 +33,11 @@ pub const BAND_SHARE: f64 = 0.99;
 /// as the phase lag its low-frequency side adds.
 pub const MODE_OVER_BAND: f64 = 2.0;
 
+/// Creep over this share of the drive it low-passes is not a piezo's: a stack creeps a few
+/// percent per decade of time (about 1-2 %), some ten percent over a record; more is a lag
+/// or a drift standing in.
+pub const CREEP_PLAUSIBLE: f64 = 0.25;
+
 /// A parameter within this share of its range from a bound is at that bound.
 pub const AT_BOUND_SHARE: f64 = 0.01;
 
@@ -172,6 +177,21 @@ pub fn check(f: &Fitted, scope: &Scope) -> Vec<Flag> {
         if let Some(flag) = unsupported(name, *value, scope) {
             flags.push(flag);
         }
+    }
+    if let Some(total) = f.structure.creep_total(&f.theta)
+        && total > CREEP_PLAUSIBLE
+    {
+        flags.push(Flag {
+            parameter: "creep_total".into(),
+            value: total,
+            shows_as: Vec::new(),
+            kind: "implausible",
+            why: format!(
+                "creep of {} % of the drive in all: a piezo creeps a few percent per decade of time, some ten percent over a record; a lag or a drift is standing in",
+                sig(100.0 * total, 3)
+            ),
+            effect: Some(Effect::Creep),
+        });
     }
     if f.structure.placement() == Placement::After
         && let Some(&(_, de)) = named.iter().find(|(n, _)| n == "d_e")
@@ -383,10 +403,23 @@ mod tests {
         let (f, scope) = fitted(&creep, &[("creep_g", 0.5), ("creep_log10_tau_s", lo)], dt);
         let flags = check_effects(&f, &scope, &[Effect::Creep]);
         let names: Vec<&str> = flags.iter().map(|g| g.parameter.as_str()).collect();
-        assert_eq!(names, ["creep_gain", "creep_tau_s"], "{flags:?}");
+        assert_eq!(
+            names,
+            ["creep_gain", "creep_tau_s", "creep_total"],
+            "{flags:?}"
+        );
         assert!((flags[0].value - 0.5).abs() < 1e-12);
         assert!((flags[1].value - 10f64.powf(lo)).abs() < 1e-12);
-        assert!(flags.iter().all(|g| g.kind == "at-bound"));
+        assert!(flags[..2].iter().all(|g| g.kind == "at-bound"));
+        assert_eq!(flags[2].kind, "implausible");
+        // A creep of 5 % is a piezo's: no flag.
+        let slow = [
+            ("creep_g", 0.03),
+            ("creep_g2", 0.02),
+            ("creep_log10_tau2_s", 0.7),
+        ];
+        let (f, scope) = fitted(&creep, &slow, dt);
+        assert!(check(&f, &scope).is_empty(), "{:?}", check(&f, &scope));
         assert!(flags[1].why.contains("fastest creep"));
         // The loop's own parameters are not the creep's.
         assert!(check_effects(&f, &scope, &[Effect::Dynamics]).is_empty());

@@ -321,6 +321,38 @@ pub fn spectra(u: &[f64], e: &[f64], dt: f64, seg: usize) -> Spectra {
     }
 }
 
+/// Windows (s) tried for a start-up at the beginning of a record.
+const START_WINDOWS: [f64; 6] = [0.05, 0.1, 0.25, 0.5, 1.0, 2.0];
+
+/// A record that starts in motion: a start-up the model does not hold, e.g. a stage
+/// stepped from rest to the first command as recording began. Found when the residual's
+/// first window (the shortest of [`START_WINDOWS`] with at least 5 samples, at most a
+/// tenth of the record) holds a tenth of its power, at over 3x both the RMS after it and
+/// the noise. Returns the seconds to leave out (the shortest window after which the next
+/// window is back within 1.5x the rest), the share of the residual power in them, and the
+/// RMS inside and after.
+pub fn start_transient(e: &[f64], dt: f64, noise: f64) -> Option<(f64, f64, f64, f64)> {
+    let n = e.len();
+    let windows: Vec<(f64, usize)> = START_WINDOWS
+        .iter()
+        .map(|&w| (w, (w / dt).round() as usize))
+        .filter(|&(_, k)| k >= 5 && 10 * k <= n)
+        .collect();
+    let &(_, first) = windows.first()?;
+    let ss = |x: &[f64]| x.iter().map(|v| v * v).sum::<f64>();
+    let total = ss(e);
+    let rms = |x: &[f64]| (ss(x) / x.len().max(1) as f64).sqrt();
+    let (ri, ro) = (rms(&e[..first]), rms(&e[first..]));
+    if total <= 0.0 || ss(&e[..first]) < 0.1 * total || ri < 3.0 * ro || ri < 3.0 * noise {
+        return None;
+    }
+    let &(w, k) = windows
+        .iter()
+        .find(|&&(_, k)| rms(&e[k..(2 * k).min(n)]) <= 1.5 * rms(&e[k..]))
+        .unwrap_or(windows.last()?);
+    Some((w, ss(&e[..k]) / total, rms(&e[..k]), rms(&e[k..])))
+}
+
 /// A finding of where the residual sits.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Located {
@@ -592,6 +624,26 @@ pub fn locate(u: &[f64], e: &[f64], dt: f64, noise: f64, unit: &str) -> Vec<Loca
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_start_up_is_found_and_timed_and_white_noise_is_not() {
+        let (dt, sigma) = (5e-3, 0.1);
+        let noise = white(8000, 7, sigma);
+        assert_eq!(start_transient(&noise, dt, sigma), None);
+        // A start-up of 40 sigma decaying with 60 ms: settled within a quarter second.
+        let e: Vec<f64> = noise
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + 40.0 * sigma * (-(k as f64) * dt / 0.06).exp())
+            .collect();
+        let (w, share, inside, after) = start_transient(&e, dt, sigma).expect("a start-up");
+        assert!(w == 0.25 || w == 0.5, "leave out {w} s");
+        assert!(
+            share > 0.5 && inside > 5.0 * after,
+            "{share} {inside} {after}"
+        );
+        assert!((after / sigma - 1.0).abs() < 0.1, "{after}");
+    }
     use crate::harness::TrialSeed;
     use crate::optimizer::operators::standard_normal;
 

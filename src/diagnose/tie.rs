@@ -1,9 +1,9 @@
 //! Ties: when another effect explains the residual about as well as the one a round names,
 //! the records cannot tell them apart, and the report must say so instead of letting a
-//! small margin pass for evidence. Two candidates are tied when, on the training record,
-//! the other's BIC gain is within [`TIE_SHARE`] of the named one's and, on the validation
-//! record, its fall of the mean square is within [`TIE_SHARE`] of the named one's or the
-//! paired block bootstrap cannot tell the two falls apart. Why they tie is measured, not
+//! small margin pass for evidence. Two candidates that both pass the gate are tied when, on
+//! the training record, the other's BIC gain is within [`TIE_SHARE`] of the named one's
+//! (either way) and, on the validation record, its fall of the mean square is within
+//! [`TIE_SHARE`] too or the paired block bootstrap cannot tell the two falls apart. Why they tie is measured, not
 //! assumed: how closely their corrections to the parent's output agree.
 
 use super::{Data, Evaluated, gain_band, validation_residual};
@@ -81,8 +81,11 @@ pub(super) fn tie(
         &validation_residual(&d.yv, n),
         seed,
     );
-    let train_tied = train_share >= 1.0 - TIE_SHARE;
-    let validate_tied = validate_share >= 1.0 - TIE_SHARE || band[0] <= 0.0;
+    // Within the share either way: a candidate explaining far more, or far less, is no
+    // alternative reading of the same evidence.
+    let close = |share: f64| (1.0 - TIE_SHARE..=1.0 / (1.0 - TIE_SHARE)).contains(&share);
+    let train_tied = close(train_share);
+    let validate_tied = close(validate_share) || (band[0] <= 0.0 && band[1] >= 0.0);
     if !(train_tied && validate_tied) {
         return None;
     }

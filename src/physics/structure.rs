@@ -869,6 +869,18 @@ impl Structure {
         self.coefs_where(|n| n == "d0" || n.starts_with("drift_") || n.starts_with("creep_x0"))
     }
 
+    /// The total gain of creep (a fraction of the drive it low-passes): both Kelvin-Voigt
+    /// elements, or the logarithmic form's gain per decade times its decades; `None`
+    /// without creep.
+    pub fn creep_total(&self, theta: &[f64]) -> Option<f64> {
+        let form = self.form(Effect::Creep)?;
+        let sh = self.shape(theta);
+        Some(match form {
+            Form::Logarithmic => sh.creep_log.abs() * log_creep_taus(&self.ctx).len() as f64,
+            _ => sh.creep_g.abs() + sh.creep_g2.abs(),
+        })
+    }
+
     /// Largest magnitude of each creep initial state (coefficient index, bound) on a record
     /// whose output spans `range`: an element of gain `g` low-passes `g D`, so its state
     /// departs from rest by at most `g` times the span of `D` (below the output's). Without
@@ -880,7 +892,7 @@ impl Structure {
         let sh = self.shape(theta);
         let gains: Vec<f64> = match form {
             Form::Logarithmic => {
-                let total = sh.creep_log.abs() * log_creep_taus(&self.ctx).len() as f64;
+                let total = self.creep_total(theta).unwrap_or(0.0);
                 vec![total, total]
             }
             _ => vec![sh.creep_g.abs(), sh.creep_g2.abs()],
