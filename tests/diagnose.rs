@@ -547,3 +547,73 @@ fn command_handles_a_record_starting_in_motion_and_one_with_long_rests() {
     let rmse = json["final"]["validate_rmse"].as_f64().unwrap();
     assert!(rmse.is_finite() && rmse > 0.0, "{rmse}");
 }
+
+/// A real piezo stack (PI P-885.91, `$OPTBENCH_DATA/pea_p885_dbo`) as a regression case:
+/// both runs load as the lab wrote them, the start-up each begins with is found, and with
+/// it left out the diagnosis names one effect, creep, and flags it as more creep than a
+/// piezo has (n pinned at 1 to keep the test short).
+#[test]
+fn the_p885_stack_is_diagnosed_with_its_start_up_found_and_its_creep_flagged() {
+    let dir = optbench::recording::data_dir().join("pea_p885_dbo");
+    if !dir.is_dir() {
+        eprintln!(
+            "skipped: {} is absent (set OPTBENCH_DATA to the data folder)",
+            dir.display()
+        );
+        return;
+    }
+    let train = dir.join("dbo_identification_1Hz_sine.csv");
+    let validate = dir.join("dbo_test_ramped_sine_with_holds.csv");
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str], out: &str| {
+        let mut a = vec![
+            "diagnose",
+            "--train",
+            train.to_str().unwrap(),
+            "--validate",
+            validate.to_str().unwrap(),
+            "--columns",
+            "t_s,u_V,y_um",
+            "--model",
+            "bouc-wen-n1",
+            "--out",
+            out,
+        ];
+        a.extend_from_slice(extra);
+        let o = optbench(&a, tmp.path());
+        let text = String::from_utf8_lossy(&o.stdout).to_string();
+        assert!(
+            o.status.success(),
+            "{text}{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let json: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(tmp.path().join(out).join("diagnosis.json")).unwrap(),
+        )
+        .unwrap();
+        (text, json)
+    };
+    let (text, _) = run(&["--effects", "delay"], "plain");
+    for record in ["training", "validation"] {
+        assert!(
+            text.contains(&format!("the {record} record starts in motion")),
+            "{text}"
+        );
+    }
+    let (text, json) = run(&["--trim-start", "1"], "trimmed");
+    assert_eq!(json["left_out"], serde_json::json!(["creep"]), "{text}");
+    assert_eq!(json["samples"], serde_json::json!([7827, 13955]));
+    let v = |set: &str| json[set]["validate_rmse"].as_f64().unwrap();
+    assert!(v("final") < 0.8 * v("baseline"), "{text}");
+    let flags = json["final"]["plausibility"].as_array().unwrap();
+    assert!(
+        flags
+            .iter()
+            .any(|f| f["parameter"] == "creep_total" && f["kind"] == "implausible"),
+        "{text}"
+    );
+    assert!(
+        text.contains("! accepted although [implausible] creep_total"),
+        "{text}"
+    );
+}
