@@ -172,6 +172,10 @@ pub struct FitArgs {
     /// decimal commas are detected).
     #[arg(long)]
     pub delimiter: Option<crate::recording::Delimiter>,
+    /// Seconds left out at the start of every CSV recording (training and validation): for
+    /// records that start in motion (`diagnose` reports such a start-up).
+    #[arg(long)]
+    pub trim_start: Option<f64>,
     /// Function evaluations (default: the seed's 200 individuals x 150 iterations).
     #[arg(long, default_value_t = 30_000)]
     pub budget: u64,
@@ -258,6 +262,7 @@ fn dispatch(cli: Cli) -> Result<()> {
                     columns: a.columns,
                     resample: a.resample,
                     delimiter: a.delimiter,
+                    trim_start: a.trim_start,
                     budget: a.budget,
                     seed: a.seed,
                     model_params: a.params,

@@ -30,6 +30,8 @@ pub struct FitRequest {
     pub resample: bool,
     /// Column separator of CSV recordings (`None`: detected).
     pub delimiter: Option<crate::recording::Delimiter>,
+    /// Seconds left out at the start of every recording.
+    pub trim_start: Option<f64>,
     pub budget: u64,
     pub seed: u64,
     /// Extra model parameters (`key=value`, values in TOML syntax).
@@ -120,6 +122,9 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
     }
     if let Some(d) = req.delimiter {
         given.insert("delimiter".into(), (toml::Value::String(d.to_string()), 0));
+    }
+    if let Some(s) = req.trim_start {
+        given.insert("trim_start".into(), (toml::Value::Float(s), 0));
     }
     pairs("--param", &req.model_params, &mut given)?;
     let params = Params::validate(

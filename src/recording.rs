@@ -97,7 +97,7 @@ impl Recording {
     pub fn trim_start(&self, seconds: f64) -> Result<Self> {
         if !(seconds.is_finite() && seconds >= 0.0) {
             return Err(Error::Input(format!(
-                "--trim-start {seconds}: expected a number of seconds >= 0"
+                "trim start {seconds}: expected a number of seconds >= 0 to leave out"
             )));
         }
         let k = (seconds / self.dt() - 1e-9).ceil().max(0.0) as usize;
@@ -106,7 +106,7 @@ impl Recording {
         }
         if self.len() < k + MIN_SAMPLES {
             return Err(Error::Input(format!(
-                "--trim-start {seconds}: {} has {} samples ({} s); at least {MIN_SAMPLES} must remain",
+                "cannot leave out the first {seconds} s: {} has {} samples ({} s); at least {MIN_SAMPLES} must remain",
                 self.name,
                 self.len(),
                 self.len() as f64 * self.dt()

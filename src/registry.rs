@@ -136,6 +136,12 @@ macro_rules! recording_params {
                 help: "column separator of CSV recordings: \",\", \";\", tab or whitespace",
             },
             Spec {
+                name: "trim_start",
+                kind: Kind::Float { min: 0.0, max: f64::INFINITY },
+                default: D::Derived("0"),
+                help: "seconds left out at the start of every recording (training and validation), for records that start in motion; before first/samples",
+            },
+            Spec {
                 name: "duration",
                 kind: Kind::Float { min: f64::MIN_POSITIVE, max: f64::INFINITY },
                 default: D::Derived("a chirp's own duration"),
@@ -187,9 +193,11 @@ fn recordings(p: &Params) -> Result<(Recording, Vec<(String, Recording)>), Error
             None => Delimiter::Auto,
         },
     };
+    let trim = p.opt_float("trim_start").unwrap_or(0.0);
     let load = |key: &str, spec: &str, duration: Option<f64>| -> Result<Recording, Error> {
         Source::parse(spec, &base, p.str("columns"), sim(duration))
             .and_then(|s| s.read_with(read).load())
+            .and_then(|r| r.trim_start(trim))
             .map_err(|e| p.error(key, e))
     };
     let mut train = load("recording", p.str("recording"), p.opt_float("duration"))?;

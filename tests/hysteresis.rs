@@ -418,6 +418,24 @@ fn fit_and_suites_read_lab_files_and_resample_on_request() {
         err.contains(&format!("note: gap.csv: {resampled}")),
         "{err}"
     );
+    // A start-up left out: the fit sees the record from 0.5 s on; too much is refused.
+    let (code, err) = fit("plain.csv", &["--trim-start", "0.5"], "t");
+    assert_eq!(code, Some(0), "{err}");
+    let j: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("t").join("fit.json")).unwrap())
+            .unwrap();
+    assert!(
+        j.to_string().contains("(first 0.5 s left out)"),
+        "{}",
+        j.to_string().chars().take(400).collect::<String>()
+    );
+    assert_ne!(fitted("t"), fitted("p"));
+    let (code, err) = fit("plain.csv", &["--trim-start", "5"], "t2");
+    assert_eq!(code, Some(2));
+    assert!(
+        err.contains("cannot leave out the first 5 s") && err.contains("must remain"),
+        "{err}"
+    );
     // The suite keys.
     let suite = "name = \"lab\"\nseed = 1\ntrials = 1\nbudget = 60\n\n[[objective]]\n\
                  kind = \"bouc-wen\"\nid = \"gap\"\nrecording = \"gap.csv\"\n\
