@@ -598,6 +598,40 @@ impl Grid {
 /// Relative tolerance of the time stamps' jitter around the fitted grid.
 pub const JITTER_TOLERANCE: f64 = 0.01;
 
+/// A CSV file's text ready for the csv reader (byte-order mark dropped, blanks made tabs
+/// for a whitespace-separated file), its delimiter byte and the delimiter used.
+fn table_text(path: &Path, opts: &ReadOptions) -> Result<(Vec<u8>, u8, Delimiter)> {
+    let bytes =
+        std::fs::read(path).map_err(|e| Error::io(format!("reading {}", path.display()), e))?;
+    // Spreadsheet exports often start with a UTF-8 byte-order mark; csv keeps it in the
+    // first header name.
+    let text = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
+    let delimiter = match opts.delimiter {
+        Delimiter::Auto => Delimiter::detect(text),
+        d => d,
+    };
+    Ok(match delimiter {
+        Delimiter::Char(c) => (text.to_vec(), c, delimiter),
+        _ => (blanks_to_tabs(text), b'\t', delimiter),
+    })
+}
+
+fn table_reader(text: &[u8], byte: u8) -> csv::Reader<&[u8]> {
+    csv::ReaderBuilder::new()
+        .has_headers(true)
+        .delimiter(byte)
+        .trim(csv::Trim::All)
+        .from_reader(text)
+}
+
+/// The column names of a CSV file's header row.
+pub fn header_names(path: &Path, opts: &ReadOptions) -> Result<Vec<String>> {
+    let (text, byte, _) = table_text(path, opts)?;
+    let mut reader = table_reader(&text, byte);
+    let headers = reader.headers().map_err(|e| Error::at(path, 1, e))?;
+    Ok(headers.iter().map(str::to_string).collect())
+}
+
 /// Most samples `--resample` may make per sample read (a record with a long pause sampled
 /// at its typical step would otherwise be huge).
 const RESAMPLE_GROWTH: usize = 10;
@@ -640,24 +674,8 @@ impl Recording {
         columns: &Columns,
         opts: &ReadOptions,
     ) -> Result<(Recording, Vec<String>)> {
-        let bytes =
-            std::fs::read(path).map_err(|e| Error::io(format!("reading {}", path.display()), e))?;
-        // Spreadsheet exports often start with a UTF-8 byte-order mark; csv keeps it in the
-        // first header name.
-        let text = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
-        let delimiter = match opts.delimiter {
-            Delimiter::Auto => Delimiter::detect(text),
-            d => d,
-        };
-        let (text, byte) = match delimiter {
-            Delimiter::Char(c) => (std::borrow::Cow::Borrowed(text), c),
-            _ => (std::borrow::Cow::Owned(blanks_to_tabs(text)), b'\t'),
-        };
-        let mut reader = csv::ReaderBuilder::new()
-            .has_headers(true)
-            .delimiter(byte)
-            .trim(csv::Trim::All)
-            .from_reader(&text[..]);
+        let (text, byte, delimiter) = table_text(path, opts)?;
+        let mut reader = table_reader(&text, byte);
         let csv_err = |e: csv::Error, fallback_line: u64| {
             let line = e.position().map_or(fallback_line, |p| p.line()) as usize;
             match e.kind() {

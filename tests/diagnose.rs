@@ -29,6 +29,51 @@ fn json_without_time(d: &optbench::diagnose::Diagnosis) -> serde_json::Value {
     v
 }
 
+/// Runs `optbench diagnose` with `args` in `dir`, asserts it succeeded, and returns its
+/// report and the `diagnosis.json` it wrote to `dir/out`.
+fn diagnose_command(
+    args: &[&str],
+    dir: &std::path::Path,
+    out: &str,
+) -> (String, serde_json::Value) {
+    let mut a = vec!["diagnose"];
+    a.extend_from_slice(args);
+    a.extend_from_slice(&["--out", out]);
+    let o = optbench(&a, dir);
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(
+        o.status.success(),
+        "{text}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let json =
+        serde_json::from_slice(&std::fs::read(dir.join(out).join("diagnosis.json")).unwrap())
+            .unwrap();
+    (text, json)
+}
+
+/// [`diagnose_command`] on `dir/train.csv` against `dir/validate.csv` with `columns`, n = 1
+/// and `extra`.
+fn diagnose_files(
+    dir: &std::path::Path,
+    columns: &str,
+    extra: &[&str],
+    out: &str,
+) -> (String, serde_json::Value) {
+    let mut a = vec![
+        "--train",
+        "train.csv",
+        "--validate",
+        "validate.csv",
+        "--columns",
+        columns,
+        "--model",
+        "bouc-wen-n1",
+    ];
+    a.extend_from_slice(extra);
+    diagnose_command(&a, dir, out)
+}
+
 #[test]
 fn every_concealed_effect_is_named_and_the_null_case_raises_no_alarm() {
     let kinds = proof::kinds();
@@ -96,36 +141,13 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
         .unwrap();
     v.write_csv(&dir.path().join("validate.csv"), &columns)
         .unwrap();
-    let out = optbench(
-        &[
-            "diagnose",
-            "--train",
-            "train.csv",
-            "--validate",
-            "validate.csv",
-            "--columns",
-            "t_s,u_V,y_mm",
-            "--model",
-            "bouc-wen-n1",
-            "--out",
-            "diag",
-            "--test",
-            "validate.csv",
-            "--test-periodic",
-            "train.csv",
-        ],
+    let (text, json) = diagnose_files(
         dir.path(),
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{text}\n{}",
-        String::from_utf8_lossy(&out.stderr)
+        "t_s,u_V,y_mm",
+        &["--test", "validate.csv", "--test-periodic", "train.csv"],
+        "diag",
     );
     assert!(text.contains("left out: asymmetry"), "{text}");
-    let json: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("diag/diagnosis.json")).unwrap())
-            .unwrap();
     for key in [
         "model",
         "noise_floor",
@@ -567,7 +589,6 @@ fn the_p885_stack_is_diagnosed_with_its_start_up_found_and_its_creep_flagged() {
     let tmp = tempfile::tempdir().unwrap();
     let run = |extra: &[&str], out: &str| {
         let mut a = vec![
-            "diagnose",
             "--train",
             train.to_str().unwrap(),
             "--validate",
@@ -576,22 +597,9 @@ fn the_p885_stack_is_diagnosed_with_its_start_up_found_and_its_creep_flagged() {
             "t_s,u_V,y_um",
             "--model",
             "bouc-wen-n1",
-            "--out",
-            out,
         ];
         a.extend_from_slice(extra);
-        let o = optbench(&a, tmp.path());
-        let text = String::from_utf8_lossy(&o.stdout).to_string();
-        assert!(
-            o.status.success(),
-            "{text}{}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        let json: serde_json::Value = serde_json::from_slice(
-            &std::fs::read(tmp.path().join(out).join("diagnosis.json")).unwrap(),
-        )
-        .unwrap();
-        (text, json)
+        diagnose_command(&a, tmp.path(), out)
     };
     let (text, _) = run(&["--effects", "delay"], "plain");
     for record in ["training", "validation"] {
@@ -616,4 +624,63 @@ fn the_p885_stack_is_diagnosed_with_its_start_up_found_and_its_creep_flagged() {
         text.contains("! accepted although [implausible] creep_total"),
         "{text}"
     );
+}
+
+/// A second input driven at the same time (a mirror on several piezos): the command reads
+/// the validation file's other columns in the input's unit and reports the one the final
+/// residual is coherent with; a column that drives nothing is not reported, nor is an
+/// output column.
+#[test]
+fn another_input_driving_the_output_is_reported_as_coupling() {
+    use optbench::physics::twin::{self, TwinConfig};
+    use optbench::signal::Signal;
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = TwinConfig::parse_overrides("amp=off,mode=off").unwrap();
+    let dt = 1e-3;
+    let write = |name: &str, drive: &str, seed: u64| {
+        let u1 = Signal::parse(drive).unwrap().sample(dt, 4.0);
+        let r = twin::recording(&cfg, "twin", u1.clone(), dt, seed).unwrap();
+        let u2 = Signal::parse(&format!(
+            "multisine:fmin=1,fmax=40,period=4,rms=1,seed={seed}"
+        ))
+        .unwrap()
+        .sample(dt, 4.0);
+        let u3 = Signal::parse(&format!(
+            "multisine:fmin=1,fmax=40,period=4,rms=1,seed={}",
+            seed + 10
+        ))
+        .unwrap()
+        .sample(dt, 4.0);
+        let mut text = String::from("t_s,u1_V,u2_V,u3_V,y_mm,y2_mm\n");
+        for k in 0..r.len() {
+            // u2 drives the output through a first-order lag; u3 drives nothing here.
+            let lagged = if k > 0 {
+                0.5 * (u2[k] + u2[k - 1])
+            } else {
+                u2[k]
+            };
+            let y = r.y[k] + 0.01 * lagged;
+            text.push_str(&format!(
+                "{},{},{},{},{},{}\n",
+                r.t[k],
+                u1[k],
+                u2[k],
+                u3[k],
+                y,
+                0.3 * y
+            ));
+        }
+        std::fs::write(dir.path().join(name), text).unwrap();
+    };
+    write("train.csv", "sine:freq=1,amp=2.3,offset=2.35", 1);
+    write("validate.csv", "triangle:freq=0.7,amp=2.2,offset=2.35", 2);
+    let (text, json) = diagnose_files(dir.path(), "t_s,u1_V,y_mm", &["--effects", "delay"], "d");
+    let couplings = json["couplings"].as_array().expect("a coupling");
+    let columns: Vec<&str> = couplings
+        .iter()
+        .map(|c| c["column"].as_str().unwrap())
+        .collect();
+    assert_eq!(columns, ["u2_V"], "{text}");
+    assert!(couplings[0]["share"].as_f64().unwrap() > 0.5, "{text}");
+    assert!(text.contains("coupling: u2_V holds"), "{text}");
 }

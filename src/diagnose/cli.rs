@@ -1,11 +1,11 @@
 //! The `optbench diagnose` arguments and their dispatch (kept here so `src/cli.rs` only
 //! names the subcommand).
 
-use super::{Options, TestSet, diagnose_with_tests, proof, report};
+use super::{Options, TestSet, coupling, diagnose_with_tests, proof, report};
 use crate::error::{Error, Result};
 use crate::objective::source::{read_noting, resolve_path};
 use crate::physics::structure::{Effect, Hold};
-use crate::recording::{Columns, Delimiter, ReadOptions, Recording};
+use crate::recording::{Columns, Delimiter, ReadOptions, Recording, header_names, unit_from_name};
 use crate::results::atomic_write;
 use std::path::PathBuf;
 
@@ -108,6 +108,41 @@ fn read(path: &std::path::Path, columns: &Columns, read: &ReadOptions) -> Result
     read_noting(&p, columns, read)
 }
 
+/// The other numeric columns of a file in the input column's unit (`u2_V` beside `u1_V`):
+/// inputs driven at the same time, read like the input (an output or a column that does
+/// not read as numbers is left out).
+fn other_inputs(
+    path: &std::path::Path,
+    columns: &Columns,
+    read_opts: &ReadOptions,
+    trim: f64,
+) -> Vec<(String, Vec<f64>)> {
+    let p = resolve_path(&path.to_string_lossy(), std::path::Path::new("."));
+    let unit = unit_from_name(&columns.input);
+    let Ok(names) = header_names(&p, read_opts) else {
+        return Vec::new();
+    };
+    names
+        .into_iter()
+        .filter(|n| {
+            ![&columns.time, &columns.input, &columns.output].contains(&n)
+                && !unit.is_empty()
+                && unit_from_name(n) == unit
+        })
+        .filter_map(|n| {
+            let c = Columns {
+                input: n.clone(),
+                ..columns.clone()
+            };
+            let r = Recording::read_csv(&p, &c, read_opts)
+                .ok()?
+                .trim_start(trim)
+                .ok()?;
+            Some((n, r.u))
+        })
+        .collect()
+}
+
 /// Runs the command; returns the text to print.
 pub fn run(a: DiagnoseArgs) -> Result<String> {
     let model = a
@@ -191,7 +226,8 @@ pub fn run(a: DiagnoseArgs) -> Result<String> {
             });
         }
     }
-    let d = diagnose_with_tests(&train, &validate, &tests, &opts)?;
+    let mut d = diagnose_with_tests(&train, &validate, &tests, &opts)?;
+    d.couplings = coupling::couplings(&d, &other_inputs(v, &columns, &ropts, a.trim_start));
     let out = a.out.unwrap_or_else(|| PathBuf::from("results/diagnose"));
     report::write(&d, &out)?;
     Ok(format!(

@@ -29,6 +29,7 @@
 //!    dropped (backward step) and the search goes on.
 
 pub mod cli;
+pub mod coupling;
 pub mod fit;
 pub mod plausible;
 pub mod proof;
@@ -263,6 +264,10 @@ pub struct Diagnosis {
     /// The recording that would settle the first tie the final model holds (`--suggest`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub next_experiment: Option<suggest::NextExperiment>,
+    /// Other inputs of the validation file the final residual is coherent with
+    /// ([`coupling::couplings`]; filled by the command, which reads the file).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub couplings: Vec<coupling::Coupling>,
 }
 
 impl Diagnosis {
@@ -2079,6 +2084,7 @@ pub fn diagnose_with_tests(
         wall_s: started.elapsed().as_secs_f64(),
         series,
         next_experiment: None,
+        couplings: Vec::new(),
     };
     let next = diag
         .in_final()

@@ -206,6 +206,9 @@ pub fn text(d: &Diagnosis) -> String {
             "no structure left that the residual tests can tell from noise".to_string()
         }
     );
+    for c in &d.couplings {
+        let _ = writeln!(s, "coupling: {}", c.line());
+    }
     let ties: Vec<String> = d
         .in_final()
         .flat_map(|c| {
