@@ -1467,23 +1467,33 @@ pub fn diagnose_with_tests(
     let unit = validate.units[2].clone();
     let mut located = residual::locate(&d.uv, &ev_base, dv, noise, &unit);
     let et_base: Vec<f64> = d.yt.iter().zip(&base.out_t).map(|(a, b)| a - b).collect();
+    // A start-up in either record: one finding, the longest window to leave out.
+    let mut starts: Vec<String> = Vec::new();
+    let mut longest = 0.0f64;
     for (record, e, step) in [("training", &et_base, dt), ("validation", &ev_base, dv)] {
         if let Some((w, share, ri, ro)) = residual::start_transient(e, step, noise) {
             let f = |x: f64| crate::report::table::sig(x, 3);
-            located.insert(
-                0,
-                residual::Located {
-                    place: "time".into(),
-                    detail: format!(
-                        "the {record} record starts in motion: its first {w} s hold {} % of the residual power (RMS {} {unit} against {} {unit} after): a start-up the model does not hold (--trim-start {w} leaves it out of every record)",
-                        f(100.0 * share),
-                        f(ri),
-                        f(ro)
-                    ),
-                    strength: ri / ro,
-                },
-            );
+            longest = longest.max(w);
+            starts.push(format!(
+                "the {record} record starts in motion: its first {w} s hold {} % of the residual power (RMS {} {unit} against {} {unit} after)",
+                f(100.0 * share),
+                f(ri),
+                f(ro)
+            ));
         }
+    }
+    if !starts.is_empty() {
+        located.insert(
+            0,
+            residual::Located {
+                place: "time".into(),
+                detail: format!(
+                    "{}: a start-up the model does not hold (--trim-start {longest} leaves it out of every record)",
+                    starts.join("; ")
+                ),
+                strength: f64::INFINITY,
+            },
+        );
     }
     let baseline = summary(&base, &d, &boot, opts.seed);
 
