@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::optbench;
+use common::{code_and_stderr, lab_csv, optbench, read_json};
 use optbench::diagnose::{Options, diagnose, proof};
 
 fn opts(seed: u64) -> Options {
@@ -46,10 +46,7 @@ fn diagnose_command(
         "{text}\n{}",
         String::from_utf8_lossy(&o.stderr)
     );
-    let json =
-        serde_json::from_slice(&std::fs::read(dir.join(out).join("diagnosis.json")).unwrap())
-            .unwrap();
-    (text, json)
+    (text, read_json(&dir.join(out).join("diagnosis.json")))
 }
 
 /// [`diagnose_command`] on `dir/train.csv` against `dir/validate.csv` with `columns`, n = 1
@@ -382,17 +379,8 @@ fn command_reads_lab_files_and_resamples_on_request() {
         .unwrap();
     v.write_csv(&dir.path().join("validate.csv"), &columns)
         .unwrap();
-    let lab = |skip: Option<usize>, jitter: f64| {
-        let comma = |x: f64| x.to_string().replace('.', ",");
-        let mut s = String::from("t_s;u_V;y_mm\n");
-        for k in (0..t.len()).filter(|k| Some(*k) != skip) {
-            let time = 1234.5 + t.t[k] + jitter * (0.7 * k as f64).sin();
-            s += &format!("{};{};{}\n", comma(time), comma(t.u[k]), comma(t.y[k]));
-        }
-        s
-    };
-    std::fs::write(dir.path().join("lab.csv"), lab(None, 2e-6)).unwrap();
-    std::fs::write(dir.path().join("gap.csv"), lab(Some(700), 0.0)).unwrap();
+    lab_csv(&t, &dir.path().join("lab.csv"), 1234.5, 2e-6, None);
+    lab_csv(&t, &dir.path().join("gap.csv"), 1234.5, 0.0, Some(700));
     let run = |train: &str, extra: &[&str], out: &str| {
         let mut a = vec![
             "diagnose",
@@ -412,20 +400,13 @@ fn command_reads_lab_files_and_resamples_on_request() {
             out,
         ];
         a.extend(extra);
-        let o = optbench(&a, dir.path());
-        (
-            o.status.code(),
-            String::from_utf8_lossy(&o.stderr).into_owned(),
-        )
+        code_and_stderr(&a, dir.path())
     };
     // The diagnosis without its wall time and training file name; the timing offset (half
     // a sample of the zero-order hold) kept apart, as the fitted step of jittered stamps
     // differs from the true one by parts in 10^9.
     let diagnosis = |out: &str| {
-        let mut j: serde_json::Value = serde_json::from_slice(
-            &std::fs::read(dir.path().join(out).join("diagnosis.json")).unwrap(),
-        )
-        .unwrap();
+        let mut j = read_json(&dir.path().join(out).join("diagnosis.json"));
         let o = j.as_object_mut().unwrap();
         for key in ["wall_s", "train"] {
             o.remove(key);
@@ -559,9 +540,7 @@ fn command_handles_a_record_starting_in_motion_and_one_with_long_rests() {
         dir.path(),
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let json: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("d/diagnosis.json")).unwrap())
-            .unwrap();
+    let json = read_json(&dir.path().join("d/diagnosis.json"));
     assert_eq!(json["samples"], serde_json::json!([2700, 6000]));
     // The initial hysteretic state is fitted: the record did not start at rest.
     let h0 = json["final"]["params"]["h0"].as_f64().unwrap();

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{optbench, run_shipped_suite};
+use common::{code_and_stderr, lab_csv, optbench, read_json, run_shipped_suite};
 use optbench::harness::{TrialSeed, TrialSpec, run_trial};
 use optbench::objective::Objective;
 use optbench::objective::fit::{BoucWenFit, RbfFit};
@@ -322,24 +322,6 @@ fn fit_command_writes_numbers_and_figures() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("missing.csv: no such file"));
 }
 
-/// `rec` written as lab software does: `;`-separated with decimal commas, time from `t0`
-/// printed with 9 decimals and off the grid by up to `jitter` s; `skip` leaves a sample
-/// out (a gap).
-fn lab_csv(rec: &Recording, path: &Path, t0: f64, jitter: f64, skip: Option<usize>) {
-    let comma = |v: f64| v.to_string().replace('.', ",");
-    let mut s = String::from("t_s;u_V;y_mm\n");
-    for k in (0..rec.len()).filter(|k| Some(*k) != skip) {
-        let t = t0 + rec.t[k] + jitter * (0.7 * k as f64).sin();
-        s += &format!(
-            "{};{};{}\n",
-            format!("{t:.9}").replace('.', ","),
-            comma(rec.u[k]),
-            comma(rec.y[k])
-        );
-    }
-    std::fs::write(path, s).unwrap();
-}
-
 #[test]
 fn fit_and_suites_read_lab_files_and_resample_on_request() {
     let dir = tempfile::tempdir().unwrap();
@@ -366,16 +348,10 @@ fn fit_and_suites_read_lab_files_and_resample_on_request() {
             out,
         ];
         a.extend(extra);
-        let o = optbench(&a, dir.path());
-        (
-            o.status.code(),
-            String::from_utf8_lossy(&o.stderr).into_owned(),
-        )
+        code_and_stderr(&a, dir.path())
     };
     let fitted = |out: &str| {
-        let j: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(dir.path().join(out).join("fit.json")).unwrap())
-                .unwrap();
+        let j = read_json(&dir.path().join(out).join("fit.json"));
         (j["cost"].clone(), j["params"].clone())
     };
     assert_eq!(fit("plain.csv", &[], "p").0, Some(0));
@@ -421,9 +397,7 @@ fn fit_and_suites_read_lab_files_and_resample_on_request() {
     // A start-up left out: the fit sees the record from 0.5 s on; too much is refused.
     let (code, err) = fit("plain.csv", &["--trim-start", "0.5"], "t");
     assert_eq!(code, Some(0), "{err}");
-    let j: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("t").join("fit.json")).unwrap())
-            .unwrap();
+    let j = read_json(&dir.path().join("t").join("fit.json"));
     assert!(
         j.to_string().contains("(first 0.5 s left out)"),
         "{}",
@@ -446,11 +420,7 @@ fn fit_and_suites_read_lab_files_and_resample_on_request() {
     let suite = suite.replace("\"gap.csv\"", &format!("{gap:?}"));
     let run = |key: &str, out: &str| {
         std::fs::write(dir.path().join("lab.toml"), suite.replace("KEY", key)).unwrap();
-        let o = optbench(&["run", "lab.toml", "--out", out, "-q"], dir.path());
-        (
-            o.status.code(),
-            String::from_utf8_lossy(&o.stderr).into_owned(),
-        )
+        code_and_stderr(&["run", "lab.toml", "--out", out, "-q"], dir.path())
     };
     let (code, err) = run("", "r1");
     assert_ne!(code, Some(0));

@@ -44,21 +44,12 @@ pub const AT_BOUND_SHARE: f64 = 0.01;
 impl Scope {
     /// The scope of a training record: input `u`, output `y`, sampled every `dt`.
     pub fn of(u: &[f64], y: &[f64], dt: f64) -> Scope {
-        let n = u.len().min(y.len());
-        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-        let (mu, my) = (mean(&u[..n]), mean(&y[..n]));
-        let cov: f64 = (0..n).map(|i| (u[i] - mu) * (y[i] - my)).sum();
+        let r = super::residual::correlation(u, y);
         Scope {
             dt,
-            span_s: n as f64 * dt,
+            span_s: u.len().min(y.len()) as f64 * dt,
             band_hz: excited_band(u, dt),
-            slope_sign: if cov > 0.0 {
-                1.0
-            } else if cov < 0.0 {
-                -1.0
-            } else {
-                0.0
-            },
+            slope_sign: if r == 0.0 { 0.0 } else { r.signum() },
         }
     }
 }

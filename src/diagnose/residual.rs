@@ -91,6 +91,11 @@ fn xcorr(x: &[f64], y: &[f64], lags: std::ops::RangeInclusive<i64>) -> Vec<(i64,
     .collect()
 }
 
+/// Pearson correlation of `x` and `y` (0 when either is constant): [`xcorr`] at lag 0.
+pub fn correlation(x: &[f64], y: &[f64]) -> f64 {
+    xcorr(x, y, 0..=0)[0].1
+}
+
 /// One test's outcome.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct TestResult {

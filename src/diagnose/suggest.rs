@@ -103,6 +103,21 @@ fn num(x: f64) -> String {
     format!("{}", (x * scale).round() / scale)
 }
 
+/// Steps from the middle of `[lo, hi]` to near either end and back, five holds filling
+/// `duration` s.
+fn steps_and_holds(lo: f64, hi: f64, duration: f64) -> String {
+    let (mid, a) = (0.5 * (lo + hi), 0.5 * (hi - lo));
+    format!(
+        "steps:levels={};{};{};{};{},hold={}",
+        num(mid),
+        num(mid + 0.9 * a),
+        num(mid),
+        num(mid - 0.9 * a),
+        num(mid),
+        num(duration / 5.0)
+    )
+}
+
 /// Candidate excitations within `[lo, hi]` for a record of `duration` s sampled every
 /// `dt`: `(kind, spec)`.
 pub fn library(lo: f64, hi: f64, dt: f64, duration: f64) -> Vec<(String, String)> {
@@ -112,15 +127,7 @@ pub fn library(lo: f64, hi: f64, dt: f64, duration: f64) -> Vec<(String, String)
     let mut v = vec![
         (
             "steps and holds".to_string(),
-            format!(
-                "steps:levels={};{};{};{};{},hold={}",
-                num(mid),
-                num(mid + 0.9 * a),
-                num(mid),
-                num(mid - 0.9 * a),
-                num(mid),
-                num(duration / 5.0)
-            ),
+            steps_and_holds(lo, hi, duration),
         ),
         (
             "chirp".to_string(),
@@ -204,8 +211,11 @@ pub(super) fn design(
         .max(4.0 * duration)
         .min(MAX_HOLD_SECONDS);
     if long > 1.5 * duration {
-        let (kind, spec) = library(lo, hi, dt, long).swap_remove(0);
-        probes.push((format!("long {kind}"), spec, long));
+        probes.push((
+            "long steps and holds".to_string(),
+            steps_and_holds(lo, hi, long),
+            long,
+        ));
     }
     let mut tried: Vec<(Probe, f64, f64)> = probes
         .into_iter()

@@ -6,6 +6,7 @@
 //! [`TIE_SHARE`] too or the paired block bootstrap cannot tell the two falls apart. Why they tie is measured, not
 //! assumed: how closely their corrections to the parent's output agree.
 
+use super::residual::correlation;
 use super::{Data, Evaluated, gain_band, validation_residual};
 use crate::report::table::sig;
 use serde::Serialize;
@@ -34,23 +35,6 @@ pub struct Tie {
     /// The excitation that would separate them (`--suggest`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub next_experiment: Option<super::suggest::NextExperiment>,
-}
-
-/// Pearson correlation of `a` and `b` (0 when either is constant).
-fn correlation(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len().min(b.len()).max(1) as f64;
-    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (x, y) in a.iter().zip(b) {
-        sab += (x - ma) * (y - mb);
-        saa += (x - ma) * (x - ma);
-        sbb += (y - mb) * (y - mb);
-    }
-    if saa > 0.0 && sbb > 0.0 {
-        sab / (saa * sbb).sqrt()
-    } else {
-        0.0
-    }
 }
 
 /// Whether `other` (training ΔBIC `delta_other`) ties with `named` (`delta_named`), both

@@ -999,9 +999,7 @@ impl Structure {
                 let from = &self.specs[i];
                 match s.name {
                     "delay_samples" | "timing_samples" => x * ratio,
-                    "mode_log10_hz" | "mode2_log10_hz" | "lag2_log10_hz" | "fb_log10_hz"
-                        if from.neutral == from.upper =>
-                    {
+                    "mode_log10_hz" | "mode2_log10_hz" | "lag2_log10_hz" => {
                         if x >= from.upper - 1e-9 || x >= s.upper {
                             s.upper
                         } else {

@@ -80,6 +80,44 @@ pub fn optbench(args: &[&str], cwd: &Path) -> Output {
         .expect("run optbench")
 }
 
+/// [`optbench`]'s exit code and standard error.
+pub fn code_and_stderr(args: &[&str], cwd: &Path) -> (Option<i32>, String) {
+    let o = optbench(args, cwd);
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+/// A JSON file the command wrote.
+pub fn read_json(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+/// `rec` written as lab software does: `;`-separated with decimal commas, time from `t0`
+/// printed with 9 decimals and off the grid by up to `jitter` s; `skip` leaves a sample
+/// out (a gap).
+pub fn lab_csv(
+    rec: &optbench::recording::Recording,
+    path: &Path,
+    t0: f64,
+    jitter: f64,
+    skip: Option<usize>,
+) {
+    let comma = |v: f64| v.to_string().replace('.', ",");
+    let mut s = String::from("t_s;u_V;y_mm\n");
+    for k in (0..rec.len()).filter(|k| Some(*k) != skip) {
+        let t = t0 + rec.t[k] + jitter * (0.7 * k as f64).sin();
+        s += &format!(
+            "{};{};{}\n",
+            format!("{t:.9}").replace('.', ","),
+            comma(rec.u[k]),
+            comma(rec.y[k])
+        );
+    }
+    std::fs::write(path, s).unwrap();
+}
+
 /// `optbench run suites/<name>.toml` at small size into `<tempdir>/r`, which must succeed.
 pub fn run_shipped_suite(name: &str, trials: &str, budget: &str) -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
