@@ -150,11 +150,13 @@ pub struct ReportArgs {
 #[derive(clap::Args, Debug)]
 pub struct FitArgs {
     /// Training recording: a CSV file, twin:SIGNAL or eq318:SIGNAL (see `optbench list`).
+    /// Repeatable: several records fitted together (parameters shared, costs summed; with
+    /// `--param d0=true` an offset per record).
+    #[arg(long, required = true)]
+    pub recording: Vec<String>,
+    /// Held-out recording (same forms), never fitted. Repeatable.
     #[arg(long)]
-    pub recording: String,
-    /// Held-out recording (same forms), never fitted.
-    #[arg(long)]
-    pub validate: Option<String>,
+    pub validate: Vec<String>,
     /// Model to fit (a fitting objective of `optbench list`, e.g. bouc-wen or rbf).
     #[arg(long)]
     pub model: String,
@@ -257,8 +259,8 @@ fn dispatch(cli: Cli) -> Result<()> {
                 crate::fitting::run_fit(&crate::fitting::FitRequest {
                     model: a.model,
                     optimizer: a.optimizer,
-                    recording: a.recording,
-                    validate: a.validate,
+                    recording: a.recording.join(" | "),
+                    validate: (!a.validate.is_empty()).then(|| a.validate.join(" | ")),
                     columns: a.columns,
                     resample: a.resample,
                     delimiter: a.delimiter,

@@ -180,12 +180,17 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
     let metrics = objective.metrics(&record.best_x);
     let named = view.named_params(&record.best_x);
     let recs = view.recordings();
-    let train = recs[0].1;
+    let (trains, held): (Vec<_>, Vec<_>) = recs.iter().partition(|(l, _)| l.starts_with("train"));
+    let train_names = trains
+        .iter()
+        .map(|(_, r)| r.name.as_str())
+        .collect::<Vec<_>>()
+        .join(" + ");
     let summary = FitSummary {
         model: &req.model,
         optimizer: &req.optimizer,
-        recording: train.name.clone(),
-        validate: recs[1..].iter().map(|(_, r)| r.name.clone()).collect(),
+        recording: train_names.clone(),
+        validate: held.iter().map(|(_, r)| r.name.clone()).collect(),
         seed: req.seed,
         budget: req.budget,
         evaluations: record.evaluations,
@@ -204,7 +209,7 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
 
     let mut text = format!(
         "{} fitted by {} to {} ({} evaluations, {:.1} s)\n\n",
-        req.model, req.optimizer, train.name, record.evaluations, record.wall_s
+        req.model, req.optimizer, train_names, record.evaluations, record.wall_s
     );
     for m in &metrics {
         text += &format!("  {:<34} {}\n", m.name, sig(m.value, 4));

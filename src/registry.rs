@@ -97,7 +97,7 @@ macro_rules! recording_params {
                 name: "recording",
                 kind: Kind::Text,
                 default: D::Required,
-                help: "CSV path ($OPTBENCH_DATA/..., or relative to the suite), twin:SIGNAL or eq318:SIGNAL",
+                help: "CSV path ($OPTBENCH_DATA/..., or relative to the suite), twin:SIGNAL or eq318:SIGNAL; several separated by \" | \" are fitted together (parameters shared, costs summed)",
             },
             Spec {
                 name: "validate",
@@ -176,9 +176,10 @@ macro_rules! recording_params {
     };
 }
 
-/// The training recording (sliced by `first`/`samples`) and the labelled validation
-/// recordings (`validate = "A | B"`) named by a fitting objective.
-fn recordings(p: &Params) -> Result<(Recording, Vec<(String, Recording)>), Error> {
+/// The training recordings (`recording = "A | B"`; one may be sliced by `first`/`samples`)
+/// and the labelled validation recordings (`validate = "A | B"`) named by a fitting
+/// objective.
+fn recordings(p: &Params) -> Result<(Vec<Recording>, Labelled), Error> {
     let base = p.file().parent().unwrap_or(Path::new(".")).to_path_buf();
     let sim = |duration: Option<f64>| SimOptions {
         duration,
@@ -200,7 +201,21 @@ fn recordings(p: &Params) -> Result<(Recording, Vec<(String, Recording)>), Error
             .and_then(|r| r.trim_start(trim))
             .map_err(|e| p.error(key, e))
     };
-    let mut train = load("recording", p.str("recording"), p.opt_float("duration"))?;
+    let specs: Vec<&str> = p.str("recording").split(" | ").map(str::trim).collect();
+    if specs.len() > 1 {
+        if p.opt_int("samples").is_some() || p.usize("first") > 0 {
+            return Err(p.error(
+                "first",
+                "first/samples slice one training recording; with several, trim the files or use trim_start",
+            ));
+        }
+        let train = specs
+            .iter()
+            .map(|s| load("recording", s, p.opt_float("duration")))
+            .collect::<Result<Vec<_>, _>>()?;
+        return Ok((train, validation(p, &load)?));
+    }
+    let mut train = load("recording", specs[0], p.opt_float("duration"))?;
     let first = p.usize("first");
     let end = match p.opt_int("samples") {
         Some(n) => first.saturating_add(n as usize),
@@ -218,6 +233,17 @@ fn recordings(p: &Params) -> Result<(Recording, Vec<(String, Recording)>), Error
         }
         train = train.slice(first..end).map_err(|e| p.error("samples", e))?;
     }
+    Ok((vec![train], validation(p, &load)?))
+}
+
+/// Recordings with their labels.
+type Labelled = Vec<(String, Recording)>;
+
+/// Loads a recording for a key from a spec, with a duration for simulated ones.
+type Loader<'a> = dyn Fn(&str, &str, Option<f64>) -> Result<Recording, Error> + 'a;
+
+/// The labelled validation recordings of [`recordings`].
+fn validation(p: &Params, load: &Loader) -> Result<Labelled, Error> {
     let mut validate = Vec::new();
     if let Some(specs) = p.opt_str("validate") {
         let specs: Vec<&str> = specs.split(" | ").map(str::trim).collect();
@@ -238,7 +264,7 @@ fn recordings(p: &Params) -> Result<(Recording, Vec<(String, Recording)>), Error
             ));
         }
     }
-    Ok((train, validate))
+    Ok(validate)
 }
 
 const RBF_PARAMS: &[Spec] = recording_params![

@@ -405,8 +405,9 @@ fn harness_overhead(cfg: &BenchConfig) -> f64 {
 fn msga_threads(cfg: &BenchConfig, migration_lag: usize) -> f64 {
     let (u, y) = fixtures::record(cfg.samples);
     let rec = Recording::uniform("bench", 1e-3, u, y).expect("valid record");
-    let fit: Arc<dyn Objective> =
-        Arc::new(BoucWenFit::new(&rec, &[], false, true, 0.0, 1.5).expect("valid fit"));
+    let fit: Arc<dyn Objective> = Arc::new(
+        BoucWenFit::new(std::slice::from_ref(&rec), &[], false, true, 0.0, 1.5).expect("valid fit"),
+    );
     let budget = (cfg.evaluations / 20).max(2000);
     let run = |threads: bool| {
         let opt = MsgaConfig {

@@ -663,3 +663,64 @@ fn another_input_driving_the_output_is_reported_as_coupling() {
     assert!(couplings[0]["share"].as_f64().unwrap() > 0.5, "{text}");
     assert!(text.contains("coupling: u2_V holds"), "{text}");
 }
+
+/// Several training records of one twin, at 1 kHz and 400 Hz, each with a sensor offset of
+/// its own: one joint fit shares the actuator's creep and hysteresis, refits each record's
+/// offset, initial state and timing, names creep with the twin's gains and time constants,
+/// and returns the offsets as given; validated on two records at a third rate, at the
+/// noise floor. The step record alone identifies too little of the loop to predict the
+/// triangle.
+#[test]
+fn several_records_at_several_rates_are_fitted_together() {
+    use optbench::diagnose::diagnose_with_tests;
+    use optbench::physics::twin::{self, TwinConfig};
+    use optbench::signal::Signal;
+    let cfg = TwinConfig::parse_overrides(
+        "amp=off,mode=off,creep.enabled=on,creep.gain_fast=0.04,creep.tau_fast=0.3,creep.gain_slow=0.04,creep.tau_slow=3",
+    )
+    .unwrap();
+    let record = |spec: &str, dt: f64, seconds: f64, offset: f64, seed: u64| {
+        let u = Signal::parse(spec).unwrap().sample(dt, seconds);
+        let mut r = twin::recording(&cfg, format!("{spec} at {dt} s"), u, dt, seed).unwrap();
+        r.y.iter_mut().for_each(|y| *y += offset);
+        r
+    };
+    let train = [
+        record(
+            "steps:levels=0.5;4.2;1.5;3.3;0.8,hold=1.2",
+            1e-3,
+            6.0,
+            0.0,
+            1,
+        ),
+        record("sine:freq=0.8,amp=2.0,offset=2.35", 2.5e-3, 6.0, 0.05, 2),
+    ];
+    let validate = [
+        record("triangle:freq=0.6,amp=2.1,offset=2.35", 2e-3, 5.0, -0.03, 3),
+        record("steps:levels=0.5;4.0;1.0;2.5,hold=1.5", 2e-3, 6.0, 0.02, 4),
+    ];
+    let d = diagnose_with_tests(&train, &validate, &[], &opts(1)).unwrap();
+    assert_eq!(d.accepted_labels(), ["creep"], "{}", d.search_stop);
+    assert_eq!(d.samples, [6000 + 2400, 2500 + 3000]);
+    let p = &d.final_model.params;
+    for (name, want) in [
+        ("creep_gain", 0.04),
+        ("creep_tau_s", 0.3),
+        ("creep_gain_slow", 0.04),
+        ("creep_tau_slow_s", 3.0),
+    ] {
+        assert!((p[name] / want - 1.0).abs() < 0.05, "{name} {}", p[name]);
+    }
+    let step = p["d0@2"] - p["d0"];
+    assert!((step - 0.05).abs() < 0.002, "offset step {step}");
+    assert!(p.contains_key("g0_frac@2") && p.contains_key("timing_samples@2"));
+    let ratio = d.final_model.validate_rmse / d.noise_floor;
+    assert!(ratio < 1.15, "validation {ratio}x the noise floor");
+    // The step record alone: the loop between its five levels is not identified.
+    let alone = diagnose_with_tests(&train[..1], &validate[..1], &[], &opts(1)).unwrap();
+    let ratio_alone = alone.final_model.validate_rmse / alone.noise_floor;
+    assert!(
+        ratio_alone > 3.0,
+        "one record: {ratio_alone}x the noise floor"
+    );
+}

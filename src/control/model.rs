@@ -271,7 +271,13 @@ impl ModelFitConfig {
             ));
         }
         let net = RbfNet::new(narx.dim(), self.hidden);
-        let fit = Arc::new(RbfFit::new(&rec, &[], net, narx, self.mode()?)?);
+        let fit = Arc::new(RbfFit::new(
+            std::slice::from_ref(&rec),
+            &[],
+            net,
+            narx,
+            self.mode()?,
+        )?);
         let pso = PsoConfig {
             swarm: self.swarm,
             ..PsoConfig::default()

@@ -11,12 +11,15 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct DiagnoseArgs {
-    /// Training recording (CSV with a header).
+    /// Training recording (CSV with a header). Repeatable: several records of the device
+    /// (at any sampling intervals) fitted together, the actuator's parameters shared, each
+    /// record's initial state, timing, offset, drift and creep states its own.
     #[arg(long, required_unless_present = "proof")]
-    pub train: Option<PathBuf>,
-    /// Validation recording, a different excitation (CSV), never fitted.
+    pub train: Vec<PathBuf>,
+    /// Validation recording, a different excitation (CSV), never fitted. Repeatable, as
+    /// --train.
     #[arg(long, required_unless_present = "proof")]
-    pub validate: Option<PathBuf>,
+    pub validate: Vec<PathBuf>,
     /// Model family: bouc-wen (n fitted, kept only if BIC says so) or bouc-wen-n1 (n = 1).
     /// Default: bouc-wen; bouc-wen-n1 for --proof (the twin's n is 1; ten times faster).
     #[arg(long)]
@@ -212,11 +215,16 @@ pub fn run(a: DiagnoseArgs) -> Result<String> {
         resample: a.resample,
         delimiter: a.delimiter,
     };
-    let (Some(t), Some(v)) = (&a.train, &a.validate) else {
+    if a.train.is_empty() || a.validate.is_empty() {
         return Err(Error::Input("--train and --validate are required".into()));
+    }
+    let records = |paths: &[PathBuf]| -> Result<Vec<Recording>> {
+        paths
+            .iter()
+            .map(|p| read(p, &columns, &ropts)?.trim_start(a.trim_start))
+            .collect()
     };
-    let train = read(t, &columns, &ropts)?.trim_start(a.trim_start)?;
-    let validate = read(v, &columns, &ropts)?.trim_start(a.trim_start)?;
+    let (train, validate) = (records(&a.train)?, records(&a.validate)?);
     let mut tests = Vec::new();
     for (paths, periodic) in [(&a.test, false), (&a.test_periodic, true)] {
         for p in paths {
@@ -227,7 +235,24 @@ pub fn run(a: DiagnoseArgs) -> Result<String> {
         }
     }
     let mut d = diagnose_with_tests(&train, &validate, &tests, &opts)?;
-    d.couplings = coupling::couplings(&d, &other_inputs(v, &columns, &ropts, a.trim_start));
+    // Columns every validation file holds, concatenated as the records are.
+    let mut others: Vec<(String, Vec<f64>)> = Vec::new();
+    for (k, v) in a.validate.iter().enumerate() {
+        let here = other_inputs(v, &columns, &ropts, a.trim_start);
+        others = if k == 0 {
+            here
+        } else {
+            others
+                .into_iter()
+                .filter_map(|(n, mut x)| {
+                    let more = &here.iter().find(|h| h.0 == n)?.1;
+                    x.extend(more);
+                    Some((n, x))
+                })
+                .collect()
+        };
+    }
+    d.couplings = coupling::couplings(&d, &others);
     let out = a.out.unwrap_or_else(|| PathBuf::from("results/diagnose"));
     report::write(&d, &out)?;
     Ok(format!(

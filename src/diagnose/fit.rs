@@ -246,15 +246,41 @@ impl Fitted {
 
     /// The same fitted model for a record sampled every `dt` ([`Structure::at_interval`],
     /// [`Structure::carry`]); itself when `dt` is its own.
+    /// A model fitted to several records gives its first record's.
     pub fn at_interval(&self, dt: f64) -> Fitted {
-        if same_interval(dt, self.structure.context().dt) {
+        let joint = self.structure.records().is_some();
+        if !joint && same_interval(dt, self.structure.context().dt) {
             return self.clone();
         }
         let structure = self.structure.at_interval(dt);
+        let mut linear = self.linear.clone();
+        linear.coef.truncate(structure.linear_names().len());
         Fitted {
             theta: self.structure.carry(&self.theta, &structure),
             structure,
-            linear: self.linear.clone(),
+            linear,
+            evaluations: self.evaluations,
+        }
+    }
+
+    /// The model on one record: a model fitted to several records gives its first
+    /// record's; a one-record model itself.
+    pub fn single(&self) -> Fitted {
+        self.at_interval(self.structure.context().dt)
+    }
+
+    /// The model on records of `parts` (samples, interval), concatenated: the actuator's
+    /// parameters carried, each record's own (initial state, timing, offset, drift, creep
+    /// states) at rest for [`record_state_for`] and [`Structure::simulate_on`] to fit.
+    pub fn on_records(&self, parts: &[(usize, f64)]) -> Fitted {
+        let one = self.single();
+        let structure = one.structure.on_records(parts);
+        let mut linear = one.linear.clone();
+        linear.coef.resize(structure.linear_names().len(), 0.0);
+        Fitted {
+            theta: one.structure.carry(&one.theta, &structure),
+            structure,
+            linear,
             evaluations: self.evaluations,
         }
     }
@@ -512,11 +538,7 @@ fn bic_gain(rec: &TrialRecord, samples: usize) -> f64 {
     samples as f64 * (start_cost / rec.best).ln()
 }
 
-/// Whether two sampling intervals are one (within 1e-6: the step fitted to jittered or
-/// rounded time stamps differs from the true one by parts in 10^9).
-pub fn same_interval(a: f64, b: f64) -> bool {
-    ((a - b) / b).abs() <= 1e-6
-}
+pub use crate::physics::structure::same_interval;
 
 /// Validation SSE/2 of a fitted model as a function of what belongs to the record only
 /// (its initial hysteretic state, and at another sampling interval its sub-sample timing);
@@ -580,14 +602,17 @@ pub fn record_state_for(
     timing: bool,
 ) -> (Vec<f64>, u64) {
     let specs = f.structure.specs();
-    let names: &[&str] = if timing {
-        &["g0_frac", "timing_samples"]
-    } else {
-        &["g0_frac"]
-    };
-    let indices: Vec<usize> = names
+    // Every record's initial state; the timing of every record at another interval than
+    // the first's, and the first's when `timing`.
+    let indices: Vec<usize> = specs
         .iter()
-        .filter_map(|n| specs.iter().position(|s| s.name == *n))
+        .enumerate()
+        .filter(|(_, s)| {
+            s.name.starts_with("g0_frac")
+                || s.name.starts_with("timing_samples@")
+                || (timing && s.name == "timing_samples")
+        })
+        .map(|(i, _)| i)
         .collect();
     if indices.is_empty() {
         return (f.theta.clone(), 0);
@@ -610,7 +635,7 @@ pub fn record_state_for(
     let x0: Vec<f64> = indices
         .iter()
         .map(|&i| {
-            if specs[i].name == "g0_frac" {
+            if specs[i].name.starts_with("g0_frac") {
                 0.0
             } else {
                 f.theta[i]

@@ -41,7 +41,9 @@ pub mod tie;
 use crate::error::{Error, Result};
 use crate::harness::TrialSeed;
 use crate::optimizer::operators::standard_normal;
-use crate::physics::structure::{Context, Effect, Form, Hold, ParamSpec, Placement, Structure};
+use crate::physics::structure::{
+    Context, Effect, Form, Hold, MAX_RECORDS, ParamSpec, Placement, Structure,
+};
 use crate::recording::Recording;
 use fit::{Budget, Fitted};
 use rand::RngExt;
@@ -347,6 +349,9 @@ struct Data {
     scope: plausible::Scope,
     /// The validation record's sampling interval (the model is discretised for it).
     dv: f64,
+    /// The validation records (samples, interval) when there are several, concatenated in
+    /// `uv`, `yv`.
+    validation_parts: Option<Vec<(usize, f64)>>,
 }
 
 impl Data {
@@ -368,14 +373,21 @@ impl Data {
             periodic,
             scope,
             dv: dt,
+            validation_parts: None,
         }
     }
 
     /// `f`'s output on the validation input (recorded output `yv`, used only for the
     /// record's own initial state); a periodic record is simulated over two periods and the
     /// second returned, so no start-up transient is scored. Also the evaluations used and
-    /// the coefficients with the record's own ones (offset, drift, creep states) refitted.
-    fn validation_output(&self, f: &Fitted, yv: &[f64], seed: u64) -> (Vec<f64>, u64, Vec<f64>) {
+    /// the coefficients with the record's own ones (offset, drift, creep states) refitted,
+    /// and how many values belong to the record(s) (refitted there).
+    fn validation_output(
+        &self,
+        f: &Fitted,
+        yv: &[f64],
+        seed: u64,
+    ) -> (Vec<f64>, u64, Vec<f64>, usize) {
         let twice = |v: &[f64]| -> Vec<f64> { v.iter().chain(v).copied().collect() };
         let (u, y) = if self.periodic {
             (twice(&self.uv), twice(yv))
@@ -383,10 +395,19 @@ impl Data {
             (self.uv.clone(), yv.to_vec())
         };
         let other_interval = !fit::same_interval(self.dv, self.scope.dt);
-        let f = f.at_interval(self.dv);
+        let f = match &self.validation_parts {
+            Some(parts) => f.on_records(parts),
+            None => f.at_interval(self.dv),
+        };
         let (theta, used) = fit::record_state_for(&f, &u, &y, 60, seed, other_interval);
         let (out, coef) = f.structure.simulate_on(&theta, &f.linear.coef, &u, &y);
-        (out[out.len() - self.uv.len()..].to_vec(), used, coef)
+        let own = f.structure.record_coefs().len()
+            + f.structure
+                .specs()
+                .iter()
+                .filter(|s| s.name.starts_with("g0_frac"))
+                .count();
+        (out[out.len() - self.uv.len()..].to_vec(), used, coef, own)
     }
 }
 
@@ -495,13 +516,12 @@ struct Evaluated {
 
 fn evaluate(mut f: Fitted, d: &Data, opts: &Options) -> Evaluated {
     let (out_t, _) = f.structure.simulate(&f.theta, &f.linear.coef, &d.ut);
-    let (out_v, used, coef_v) = d.validation_output(&f, &d.yv, opts.seed);
+    let (out_v, used, coef_v, refitted) = d.validation_output(&f, &d.yv, opts.seed);
     f.evaluations += used;
     let ev: Vec<f64> = d.yv.iter().zip(&out_v).map(|(a, b)| a - b).collect();
     let tests = residual::battery(&d.uv, &ev, opts.lags, opts.alpha);
     let n = ev.len().max(1) as f64;
     let sse = ev.iter().map(|e| e * e).sum::<f64>().max(1e-300);
-    let refitted = f.structure.record_coefs().len() + 1;
     Evaluated {
         validate_rmse: residual::rms(&ev),
         validate_ic: n * (sse / n).ln() + refitted as f64 * n.ln(),
@@ -550,7 +570,7 @@ fn summary(e: &Evaluated, d: &Data, boot: &[f64], seed: u64) -> ModelSummary {
 fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> (Vec<f64>, u64) {
     let st = &base.structure;
     let (mt, _) = st.simulate(&base.theta, &base.linear.coef, &d.ut);
-    let (mv, _, _) = d.validation_output(base, &d.yv, opts.seed);
+    let (mv, _, _, _) = d.validation_output(base, &d.yv, opts.seed);
     let runs: Vec<(f64, u64)> = (0..opts.bootstrap)
         .into_par_iter()
         .with_max_len(1)
@@ -581,7 +601,7 @@ fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> (Vec
                 },
                 opts.seed ^ (0xb00 + b as u64),
             );
-            let (ov, used, _) = d.validation_output(&refit, &yv, opts.seed);
+            let (ov, used, _, _) = d.validation_output(&refit, &yv, opts.seed);
             let ev: Vec<f64> = yv.iter().zip(&ov).map(|(a, b)| a - b).collect();
             let score = residual::score(&residual::battery(&d.uv, &ev, opts.lags, opts.alpha));
             (score, refit.evaluations + used)
@@ -1249,9 +1269,10 @@ fn round_ties(
                 opts.seed,
             )?;
             if opts.suggest {
+                // Designed on one record's model (a record of its own is proposed).
                 t.next_experiment = Some(suggest::design(
-                    &tried[named].fitted,
-                    &tried[j].fitted,
+                    &tried[named].fitted.single(),
+                    &tried[j].fitted.single(),
                     [label(&pool[named]), label(&pool[j])],
                     &d.ut,
                     d.scope.dt,
@@ -1354,33 +1375,123 @@ fn free_run(f: &Fitted, t: &TestSet) -> f64 {
     residual::rms(&e)
 }
 
-/// Diagnoses `train` against `validate` (same sampling interval).
+/// Diagnoses `train` against `validate` (each at its own sampling interval).
 pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Result<Diagnosis> {
-    diagnose_with_tests(train, validate, &[], opts)
+    diagnose_with_tests(
+        std::slice::from_ref(train),
+        std::slice::from_ref(validate),
+        &[],
+        opts,
+    )
 }
 
-/// [`diagnose`], then the baseline and the final model in free run on each of `tests`.
+/// Several records as one: concatenated (time counted on at the first record's interval,
+/// for figures only) with each record's length and sampling interval, its pooled noise
+/// floor and whether every record's floor settled.
+struct Joined {
+    record: Recording,
+    parts: Vec<(usize, f64)>,
+    noise: f64,
+    settled: bool,
+}
+
+impl Joined {
+    fn of(records: &[Recording], role: &str) -> Result<Joined> {
+        if records.is_empty() || records.len() > MAX_RECORDS {
+            return Err(Error::Input(format!(
+                "diagnose takes 1 to {MAX_RECORDS} {role} records, not {}",
+                records.len()
+            )));
+        }
+        if let Some(r) = records.iter().find(|r| r.len() < 200) {
+            return Err(Error::Input(format!(
+                "diagnose needs at least 200 samples per recording ({}: {})",
+                r.name,
+                r.len()
+            )));
+        }
+        let first = &records[0];
+        if records.len() == 1 {
+            let (noise, settled) = residual::noise_floor_and_settled(&first.y);
+            return Ok(Joined {
+                record: first.clone(),
+                parts: vec![(first.len(), first.dt())],
+                noise,
+                settled,
+            });
+        }
+        let cat = |f: fn(&Recording) -> &Vec<f64>| -> Vec<f64> {
+            records.iter().flat_map(|r| f(r).iter().copied()).collect()
+        };
+        let name = records
+            .iter()
+            .map(|r| r.name.as_str())
+            .collect::<Vec<_>>()
+            .join(" + ");
+        let mut record = Recording::uniform(name, first.dt(), cat(|r| &r.u), cat(|r| &r.y))?;
+        record.units = first.units.clone();
+        let floors: Vec<(f64, bool)> = records
+            .iter()
+            .map(|r| residual::noise_floor_and_settled(&r.y))
+            .collect();
+        let n: usize = records.iter().map(Recording::len).sum();
+        let noise = (records
+            .iter()
+            .zip(&floors)
+            .map(|(r, f)| r.len() as f64 * f.0 * f.0)
+            .sum::<f64>()
+            / n as f64)
+            .sqrt();
+        Ok(Joined {
+            record,
+            parts: records.iter().map(|r| (r.len(), r.dt())).collect(),
+            noise,
+            settled: floors.iter().all(|f| f.1),
+        })
+    }
+
+    fn several(&self) -> bool {
+        self.parts.len() > 1
+    }
+}
+
+/// The inputs of the records `parts` (samples, interval) concatenated in `r`.
+fn train_inputs<'a>(parts: &[(usize, f64)], r: &'a Recording) -> Vec<(&'a [f64], f64)> {
+    let mut from = 0;
+    parts
+        .iter()
+        .map(|&(n, dt)| {
+            from += n;
+            (&r.u[from - n..from], dt)
+        })
+        .collect()
+}
+
+/// [`diagnose`] on one or several training and validation records (actuator parameters
+/// shared, each record's own initial state, timing, offset, drift and creep states fitted
+/// on it), then the baseline and the final model in free run on each of `tests`.
 pub fn diagnose_with_tests(
-    train: &Recording,
-    validate: &Recording,
+    train: &[Recording],
+    validate: &[Recording],
     tests: &[TestSet],
     opts: &Options,
 ) -> Result<Diagnosis> {
     let started = std::time::Instant::now();
     let fixed_n = opts.fixed_n()?;
+    let (tj, vj) = (
+        Joined::of(train, "training")?,
+        Joined::of(validate, "validation")?,
+    );
+    if vj.several() && opts.validate_periodic {
+        return Err(Error::Input(
+            "--validate-periodic takes one validation record (one period of a steady state)".into(),
+        ));
+    }
+    let (train, validate) = (&tj.record, &vj.record);
     // Each record at its own sampling interval: the models are continuous-time, the
     // validation and test records' linear blocks discretised for theirs.
-    let dt = train.dt();
-    let dv = validate.dt();
-    if train.len() < 200 || validate.len() < 200 {
-        return Err(Error::Input(format!(
-            "diagnose needs at least 200 samples per recording ({}: {}, {}: {})",
-            train.name,
-            train.len(),
-            validate.name,
-            validate.len()
-        )));
-    }
+    let dt = tj.parts[0].1;
+    let dv = vj.parts[0].1;
     let mut d = Data::new(
         train.u.clone(),
         train.y.clone(),
@@ -1390,16 +1501,29 @@ pub fn diagnose_with_tests(
         dt,
     );
     d.dv = dv;
-    let ctx = Context::from_training(&train.u, dt).with_hold(opts.hold);
-    let (train_noise, train_settled) = residual::noise_floor_and_settled(&train.y);
-    let (validate_noise, validate_settled) = residual::noise_floor_and_settled(&validate.y);
+    if tj.several() {
+        d.scope = plausible::Scope::of_records(train_inputs(&tj.parts, train), &train.y);
+    }
+    if vj.several() {
+        d.validation_parts = Some(vj.parts.clone());
+    }
+    let ctx = Context::from_records(&train_inputs(&tj.parts, train)).with_hold(opts.hold);
+    let (train_noise, train_settled) = (tj.noise, tj.settled);
+    let (validate_noise, validate_settled) = (vj.noise, vj.settled);
     let noise = (0.5 * (train_noise * train_noise + validate_noise * validate_noise)).sqrt();
     // The noise-floor stop only where the floor is a measurement, not an upper bound: no
     // name needing `share` of the noise variance can be earned from `rmse`.
     let floor_settled = train_settled && validate_settled;
     let no_room =
         |rmse: f64, share: f64| floor_settled && at_noise_floor(rmse, validate_noise, noise, share);
-    let plain = Structure::new(&[], fixed_n, ctx);
+    let on_records = |st: Structure| {
+        if tj.several() {
+            st.on_records(&tj.parts)
+        } else {
+            st
+        }
+    };
+    let plain = on_records(Structure::new(&[], fixed_n, ctx));
     // With n free the kernel is several times slower: explore on the first samples only
     // (the polish, and the n = 1 refit that BIC compares it with, see the whole record).
     let base_budget = match fixed_n {
@@ -1418,7 +1542,7 @@ pub fn diagnose_with_tests(
         None => String::new(),
     };
     let base_fit = if fixed_n.is_none() {
-        let pinned = Structure::new(&[], Some(1.0), ctx);
+        let pinned = on_records(Structure::new(&[], Some(1.0), ctx));
         let start = plain.embed(&base_fit.theta, &pinned);
         let f1 = fit::fit(
             &pinned,

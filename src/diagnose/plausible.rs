@@ -52,6 +52,24 @@ impl Scope {
             slope_sign: if r == 0.0 { 0.0 } else { r.signum() },
         }
     }
+
+    /// The scope of several training records `(input, interval)` fitted together (their
+    /// outputs concatenated in `y`): the first record's interval, the longest record, the
+    /// widest excited band, the slope over all of them.
+    pub fn of_records(records: Vec<(&[f64], f64)>, y: &[f64]) -> Scope {
+        let u: Vec<f64> = records.iter().flat_map(|r| r.0.iter().copied()).collect();
+        let r = super::residual::correlation(&u, y);
+        Scope {
+            dt: records.first().map_or(1.0, |r| r.1),
+            span_s: records
+                .iter()
+                .fold(0.0, |m, &(u, dt)| f64::max(m, u.len() as f64 * dt)),
+            band_hz: records
+                .iter()
+                .fold(0.0, |m, &(u, dt)| f64::max(m, excited_band(u, dt))),
+            slope_sign: if r == 0.0 { 0.0 } else { r.signum() },
+        }
+    }
 }
 
 /// Frequency below which [`BAND_SHARE`] of the power of `u`'s first difference lies

@@ -82,31 +82,67 @@ pub trait FitView {
     fn named_params(&self, p: &[f64]) -> Vec<(String, f64)>;
 }
 
-/// The training recording and any number of labelled validation recordings, scaled alike.
+/// The training recordings and any number of labelled validation recordings, scaled alike.
 #[derive(Debug, Clone)]
 pub struct Datasets {
     recordings: Vec<(String, Recording)>,
     scaled: Vec<FitData>,
+    /// The first this many sets are the training ones.
+    trains: usize,
 }
 
 impl Datasets {
-    /// `train` scaled by its own largest values (or not at all), `validate` like it.
+    /// `train` (one or several records, labelled `train` or `train1`, `train2`, ...) scaled
+    /// by their largest values (or not at all), `validate` like them.
     pub fn new(
-        train: &Recording,
+        train: &[Recording],
         validate: &[(String, Recording)],
         normalize: bool,
     ) -> Result<Self> {
-        let t = FitData::new(train, normalize)?;
-        let mut scaled = vec![t.clone()];
+        let Some(first) = train.first() else {
+            return Err(Error::Input("no training recording".into()));
+        };
+        let mut t = FitData::new(first, normalize)?;
+        for r in &train[1..] {
+            let own = FitData::new(r, normalize)?;
+            t.u_scale = t.u_scale.max(own.u_scale);
+            t.y_scale = t.y_scale.max(own.y_scale);
+        }
+        let mut scaled: Vec<FitData> = train.iter().map(|r| t.like(r)).collect();
         scaled.extend(validate.iter().map(|(_, r)| t.like(r)));
-        let mut recordings = vec![("train".to_string(), train.clone())];
+        let mut recordings: Vec<(String, Recording)> = train
+            .iter()
+            .enumerate()
+            .map(|(k, r)| {
+                let label = if train.len() == 1 {
+                    "train".to_string()
+                } else {
+                    format!("train{}", k + 1)
+                };
+                (label, r.clone())
+            })
+            .collect();
         recordings.extend(validate.iter().cloned());
-        Ok(Datasets { recordings, scaled })
+        Ok(Datasets {
+            recordings,
+            scaled,
+            trains: train.len(),
+        })
     }
 
-    /// The training data.
+    /// The first training record's data (whose scales every set shares).
     pub fn train(&self) -> &FitData {
         &self.scaled[0]
+    }
+
+    /// Every training record's data.
+    pub fn trains(&self) -> &[FitData] {
+        &self.scaled[..self.trains]
+    }
+
+    /// Training samples in all.
+    fn train_samples(&self) -> usize {
+        self.trains().iter().map(|d| d.u.len()).sum()
     }
 
     /// (label, scaled data) of every set, training first.
@@ -126,6 +162,22 @@ impl Datasets {
             .iter()
             .map(|(l, r)| (l.as_str(), r))
             .collect()
+    }
+
+    /// Refuses sets sampled at another interval than the first training record's, for a
+    /// discrete-time model (whose lags are samples).
+    fn one_interval(&self, model: &str) -> Result<()> {
+        let dt = self.recordings[0].1.dt();
+        for (label, r) in &self.recordings[1..] {
+            if !crate::physics::structure::same_interval(r.dt(), dt) {
+                return Err(Error::Input(format!(
+                    "{} ({label}) is sampled every {} s, the training record every {dt} s: the {model} is a discrete-time model (its lags are samples); resample the records to one interval, or fit a continuous-time model (bouc-wen, or optbench diagnose)",
+                    r.name,
+                    r.dt()
+                )));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -148,23 +200,25 @@ fn errors(meas: &[f64], model: &[f64], start: usize, scale: f64) -> (f64, f64) {
     (e.max_abs * scale, e.rms * scale)
 }
 
-/// Fit of a Gaussian RBF NARX network (seed section 3.2) to a recording.
+/// Fit of a Gaussian RBF NARX network (seed section 3.2) to one or several recordings
+/// (the costs summed, the regressors restarting on each).
 pub struct RbfFit {
     net: RbfNet,
     narx: Narx,
     mode: Mode,
     data: Datasets,
-    regressors: Regressors,
-    /// The training data prepared for batched costs.
-    batch: RbfBatch,
+    /// Per training record.
+    regressors: Vec<Regressors>,
+    /// The training data prepared for batched costs, per training record.
+    batch: Vec<RbfBatch>,
     bounds: Bounds,
 }
 
 impl RbfFit {
     /// The fit of `net` with regressors `narx` on `train`, optimised in `mode`; metrics also
-    /// on every `validate` recording.
+    /// on every `validate` recording. Every record at one sampling interval.
     pub fn new(
-        train: &Recording,
+        train: &[Recording],
         validate: &[(String, Recording)],
         net: RbfNet,
         narx: Narx,
@@ -178,10 +232,27 @@ impl RbfFit {
             )));
         }
         let data = Datasets::new(train, validate, true)?;
-        let regressors = Regressors::new(&narx, &data.train().u, &data.train().y);
-        let batch = RbfBatch::new(net, narx, &data.train().u, &data.train().y);
-        let (lo, hi) = regressors.input_ranges();
-        let (ylo, yhi) = regressors.output_range();
+        data.one_interval("RBF NARX network")?;
+        let regressors: Vec<Regressors> = data
+            .trains()
+            .iter()
+            .map(|d| Regressors::new(&narx, &d.u, &d.y))
+            .collect();
+        let batch = data
+            .trains()
+            .iter()
+            .map(|d| RbfBatch::new(net, narx, &d.u, &d.y))
+            .collect();
+        // Centres and widths over every training record's regressor ranges.
+        let (mut lo, mut hi) = regressors[0].input_ranges();
+        let (mut ylo, mut yhi) = regressors[0].output_range();
+        for r in &regressors[1..] {
+            let (l, h) = r.input_ranges();
+            lo.iter_mut().zip(l).for_each(|(a, b)| *a = a.min(b));
+            hi.iter_mut().zip(h).for_each(|(a, b)| *a = a.max(b));
+            let (yl, yh) = r.output_range();
+            (ylo, yhi) = (ylo.min(yl), yhi.max(yh));
+        }
         let (lower, upper) = rbf::param_bounds(&net, &lo, &hi, ylo, yhi);
         let bounds = Bounds::new(lower, upper).map_err(Error::Input)?;
         Ok(RbfFit {
@@ -259,12 +330,18 @@ impl Objective for RbfFit {
 
     fn evaluate(&self, p: &[f64]) -> f64 {
         let mut out = [0.0];
-        self.batch.costs(p, self.mode, &mut out);
+        self.evaluate_batch(p, &mut out);
         out[0]
     }
 
+    /// The sum over training records.
     fn evaluate_batch(&self, points: &[f64], out: &mut [f64]) {
-        self.batch.costs(points, self.mode, out);
+        self.batch[0].costs(points, self.mode, out);
+        let mut more = vec![0.0; out.len()];
+        for b in &self.batch[1..] {
+            b.costs(points, self.mode, &mut more);
+            out.iter_mut().zip(&more).for_each(|(o, m)| *o += m);
+        }
     }
 
     fn value_and_gradient(&self, p: &[f64], grad: &mut [f64]) -> Option<f64> {
@@ -272,7 +349,12 @@ impl Objective for RbfFit {
             // The value from the batched path, so that every optimizer records the same
             // value for the same point (the gradient pass's `exp` differs in the last bits).
             Mode::OneStepAhead => {
-                self.regressors.cost_grad(&self.net, p, grad);
+                self.regressors[0].cost_grad(&self.net, p, grad);
+                let mut more = vec![0.0; grad.len()];
+                for r in &self.regressors[1..] {
+                    r.cost_grad(&self.net, p, &mut more);
+                    grad.iter_mut().zip(&more).for_each(|(g, m)| *g += m);
+                }
                 Some(self.evaluate(p))
             }
             Mode::FreeRun => None,
@@ -289,10 +371,11 @@ impl Objective for RbfFit {
             Mode::FreeRun => "free-run",
         };
         let t = self.data.train();
+        let start = self.narx.start() * self.data.trains().len();
         Some(Presentation {
             label: format!("train {mode} RMSE{}", t.unit_suffix()),
             kind: PresentationKind::RmseFromHalfSse {
-                samples: t.u.len() - self.narx.start(),
+                samples: self.data.train_samples() - start,
                 scale: t.y_scale,
             },
         })
@@ -322,16 +405,18 @@ impl Objective for RbfFit {
     }
 }
 
-/// Fit of the seed's Bouc-Wen model (eq. 3.1-3.3) to a recording: parameters
-/// (d_e, alpha, beta, gamma, n) and optionally d0, in normalised units, cost from a free-run
-/// simulation (eq. 3.8-3.9). Unstable parameters cost a large finite penalty.
+/// Fit of the seed's Bouc-Wen model (eq. 3.1-3.3) to one or several recordings:
+/// parameters (d_e, alpha, beta, gamma, n) and optionally an offset d0 per training record,
+/// in normalised units, cost from a free-run simulation of each record (eq. 3.8-3.9),
+/// summed. The model is rate-independent, so records at any sampling intervals fit
+/// together. Unstable parameters cost a large finite penalty.
 pub struct BoucWenFit {
     with_d0: bool,
     data: Datasets,
     bounds: Bounds,
     scheme: BoucWenScheme,
-    /// The training data prepared for the fast scheme.
-    fast: FastInput,
+    /// Each training record prepared for the fast scheme.
+    fast: Vec<FastInput>,
 }
 
 /// How the Bouc-Wen fit integrates the model (see [`crate::physics::bouc_wen_fast`]).
@@ -348,14 +433,15 @@ pub enum BoucWenScheme {
     Explicit,
 }
 
-/// Names of the Bouc-Wen parameters in vector order.
+/// Names of the Bouc-Wen parameters in vector order (one `d0` per training record follows
+/// `n` when fitted).
 pub const BOUC_WEN_PARAMS: [&str; 6] = ["d_e", "alpha", "beta", "gamma", "n", "d0"];
 
 impl BoucWenFit {
     /// The fit on `train` with every parameter in `[lower, upper]` (the seed: [0, 1.5]),
     /// on normalised data or in the recording's own units.
     pub fn new(
-        train: &Recording,
+        train: &[Recording],
         validate: &[(String, Recording)],
         with_d0: bool,
         normalize: bool,
@@ -363,10 +449,13 @@ impl BoucWenFit {
         upper: f64,
     ) -> Result<Self> {
         let data = Datasets::new(train, validate, normalize)?;
-        let dim = if with_d0 { 6 } else { 5 };
+        let dim = 5 + if with_d0 { train.len() } else { 0 };
         let bounds = Bounds::uniform(dim, lower, upper).map_err(Error::Input)?;
-        let t = data.train();
-        let fast = FastInput::new(&t.u, &t.y, 0);
+        let fast = data
+            .trains()
+            .iter()
+            .map(|t| FastInput::new(&t.u, &t.y, 0))
+            .collect();
         Ok(BoucWenFit {
             with_d0,
             data,
@@ -378,45 +467,57 @@ impl BoucWenFit {
 
     /// The same fit integrated by `scheme` (default: fast, automatic sub-steps).
     pub fn with_scheme(mut self, scheme: BoucWenScheme) -> Self {
-        let t = self.data.train();
-        match scheme {
-            BoucWenScheme::Fast { substeps } => self.fast = FastInput::new(&t.u, &t.y, substeps),
-            BoucWenScheme::Explicit => self.fast = FastInput::explicit(&t.u, &t.y),
-            BoucWenScheme::Accurate => {}
+        for (f, t) in self.fast.iter_mut().zip(self.data.trains()) {
+            match scheme {
+                BoucWenScheme::Fast { substeps } => *f = FastInput::new(&t.u, &t.y, substeps),
+                BoucWenScheme::Explicit => *f = FastInput::explicit(&t.u, &t.y),
+                BoucWenScheme::Accurate => {}
+            }
         }
         self.scheme = scheme;
         self
     }
 
-    /// The scheme in use, with the sub-step count resolved.
+    /// The scheme in use, with the sub-step count resolved (the most any record uses).
     pub fn scheme(&self) -> BoucWenScheme {
         match self.scheme {
             BoucWenScheme::Fast { .. } => BoucWenScheme::Fast {
-                substeps: self.fast.substeps(),
+                substeps: self.fast.iter().map(FastInput::substeps).max().unwrap_or(1),
             },
             other => other,
         }
     }
 
-    fn params(&self, p: &[f64]) -> crate::physics::bouc_wen::BoucWenParams {
+    /// The parameters on set `set` (a training record's own offset; a validation record
+    /// gets the first training record's).
+    fn params(&self, p: &[f64], set: usize) -> crate::physics::bouc_wen::BoucWenParams {
+        let own = if set < self.fast.len() { set } else { 0 };
         crate::physics::bouc_wen::BoucWenParams {
             d_e: p[0],
             alpha: p[1],
             beta: p[2],
             gamma: p[3],
             n: p[4],
-            d0: if self.with_d0 { p[5] } else { 0.0 },
+            d0: if self.with_d0 { p[5 + own] } else { 0.0 },
         }
     }
 
-    /// Normalised model output on `d`; unstable runs keep the samples before the blow-up
-    /// and hold the last finite value after it (for plots and metrics only).
-    fn simulate(&self, p: &[f64], d: &FitData) -> Vec<f64> {
+    /// Normalised model output on set `set`; unstable runs keep the samples before the
+    /// blow-up and hold the last finite value after it (for plots and metrics only).
+    fn simulate(&self, p: &[f64], set: usize) -> Vec<f64> {
+        let Some(d) = self.data.get(set) else {
+            return Vec::new();
+        };
         let mut out = vec![0.0; d.u.len()];
-        let params = self.params(p);
+        let params = self.params(p, set);
+        let substeps = match self.scheme() {
+            BoucWenScheme::Fast { substeps } => substeps,
+            _ => 1,
+        };
         let status = match self.scheme {
             BoucWenScheme::Fast { .. } => {
-                bouc_wen_fast::simulate(&params, &d.u, self.fast.substeps(), &mut out)
+                let own = self.fast.get(set).map_or(substeps, FastInput::substeps);
+                bouc_wen_fast::simulate(&params, &d.u, own, &mut out)
             }
             BoucWenScheme::Explicit => bouc_wen_fast::simulate_explicit(&params, &d.u, &mut out),
             BoucWenScheme::Accurate => crate::physics::bouc_wen::simulate(&params, &d.u, &mut out),
@@ -444,25 +545,38 @@ impl Objective for BoucWenFit {
         out[0]
     }
 
+    /// The sum over training records.
     fn evaluate_batch(&self, points: &[f64], out: &mut [f64]) {
         let d = self.dim();
-        match self.scheme {
-            BoucWenScheme::Fast { .. } | BoucWenScheme::Explicit => {
-                let params: Vec<_> = points.chunks_exact(d).map(|p| self.params(p)).collect();
-                bouc_wen_fast::costs(&params, &self.fast, out);
-            }
-            BoucWenScheme::Accurate => {
-                let t = self.data.train();
-                for (p, o) in points.chunks_exact(d).zip(out.iter_mut()) {
-                    *o = crate::physics::bouc_wen::cost(&self.params(p), &t.u, &t.y);
+        out.fill(0.0);
+        let mut one = vec![0.0; out.len()];
+        for (r, t) in self.data.trains().iter().enumerate() {
+            match self.scheme {
+                BoucWenScheme::Fast { .. } | BoucWenScheme::Explicit => {
+                    let params: Vec<_> =
+                        points.chunks_exact(d).map(|p| self.params(p, r)).collect();
+                    bouc_wen_fast::costs(&params, &self.fast[r], &mut one);
+                }
+                BoucWenScheme::Accurate => {
+                    for (p, o) in points.chunks_exact(d).zip(one.iter_mut()) {
+                        *o = crate::physics::bouc_wen::cost(&self.params(p, r), &t.u, &t.y);
+                    }
                 }
             }
+            out.iter_mut().zip(&one).for_each(|(o, c)| *o += c);
         }
     }
 
-    /// Unstable runs cost at least the cap (and stable runs beyond it are clipped to it).
+    /// Unstable runs cost at least the cap (and stable runs beyond it are clipped to it),
+    /// on every training record.
     fn penalty_threshold(&self) -> Option<f64> {
-        Some(crate::physics::bouc_wen::cost_cap(&self.data.train().y))
+        Some(
+            self.data
+                .trains()
+                .iter()
+                .map(|t| crate::physics::bouc_wen::cost_cap(&t.y))
+                .sum(),
+        )
     }
 
     fn presentation(&self) -> Option<Presentation> {
@@ -470,7 +584,7 @@ impl Objective for BoucWenFit {
         Some(Presentation {
             label: format!("train RMSE{}", t.unit_suffix()),
             kind: PresentationKind::RmseFromHalfSse {
-                samples: t.u.len(),
+                samples: self.data.train_samples(),
                 scale: t.y_scale,
             },
         })
@@ -479,8 +593,8 @@ impl Objective for BoucWenFit {
     fn metrics(&self, p: &[f64]) -> Vec<Metric> {
         let unit = self.data.train().unit_suffix();
         let mut m = Vec::new();
-        for (set, d) in self.data.sets() {
-            let (max, rms) = errors(&d.y, &self.simulate(p, d), 0, d.y_scale);
+        for (k, (set, d)) in self.data.sets().enumerate() {
+            let (max, rms) = errors(&d.y, &self.simulate(p, k), 0, d.y_scale);
             m.push(Metric::new(format!("{set} RMSE{unit}"), rms));
             m.push(Metric::new(format!("{set} max error{unit}"), max));
         }
@@ -502,7 +616,7 @@ impl FitView for BoucWenFit {
             return Vec::new();
         };
         let y = self
-            .simulate(p, d)
+            .simulate(p, set)
             .into_iter()
             .map(|v| v * d.y_scale)
             .collect();
@@ -531,7 +645,14 @@ impl FitView for BoucWenFit {
             ("n".into(), p[4]),
         ];
         if self.with_d0 {
-            v.push((format!("d0 [{yu}]"), p[5] * ys));
+            for r in 0..self.fast.len() {
+                let at = if r == 0 {
+                    String::new()
+                } else {
+                    format!("@{}", r + 1)
+                };
+                v.push((format!("d0{at} [{yu}]"), p[5 + r] * ys));
+            }
         }
         v
     }
@@ -553,7 +674,7 @@ mod tests {
     fn costs_are_finite_and_presented_as_rmse() {
         let rec = eq318_recording(500);
         let fit = RbfFit::new(
-            &rec,
+            std::slice::from_ref(&rec),
             &[("validate".into(), rec.clone())],
             RbfNet::new(3, 7),
             Narx::SEED,
@@ -595,8 +716,14 @@ mod tests {
     #[test]
     fn one_step_mode_has_the_gradient_of_its_cost() {
         let rec = eq318_recording(300);
-        let fit =
-            RbfFit::new(&rec, &[], RbfNet::new(3, 7), Narx::SEED, Mode::OneStepAhead).unwrap();
+        let fit = RbfFit::new(
+            std::slice::from_ref(&rec),
+            &[],
+            RbfNet::new(3, 7),
+            Narx::SEED,
+            Mode::OneStepAhead,
+        )
+        .unwrap();
         assert!(fit.has_gradient());
         let mut rng = crate::harness::TrialSeed::from_u64(9).rng(0);
         let mut p = vec![0.0; 35];
@@ -604,7 +731,14 @@ mod tests {
         let mut g = vec![0.0; 35];
         let j = fit.value_and_gradient(&p, &mut g).unwrap();
         assert_eq!(j, fit.evaluate(&p));
-        let free = RbfFit::new(&rec, &[], RbfNet::new(3, 7), Narx::SEED, Mode::FreeRun).unwrap();
+        let free = RbfFit::new(
+            std::slice::from_ref(&rec),
+            &[],
+            RbfNet::new(3, 7),
+            Narx::SEED,
+            Mode::FreeRun,
+        )
+        .unwrap();
         assert!(!free.has_gradient());
     }
 }

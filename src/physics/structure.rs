@@ -40,6 +40,10 @@ use super::bouc_wen::{BoucWenKernel, BoucWenParams, cost_cap};
 use super::linear::{LowPass, Mode};
 pub use super::restoring::Hold;
 use super::restoring::{Oscillator, upsample};
+use std::sync::Arc;
+
+mod records;
+pub use records::{MAX_RECORDS, same_interval};
 
 /// A piece of physics the plain Bouc-Wen model leaves out.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -278,6 +282,33 @@ impl Context {
         }
     }
 
+    /// The scales of several training records `(input, interval)` fitted together: the
+    /// largest |u|, the RMS rate over every sample, the longest record's duration (the time
+    /// scale one record can show); sampled at the first record's interval.
+    pub fn from_records(records: &[(&[f64], f64)]) -> Context {
+        let one: Vec<Context> = records
+            .iter()
+            .map(|&(u, dt)| Context::from_training(u, dt))
+            .collect();
+        let Some(first) = one.first() else {
+            return Context::from_training(&[], 1.0);
+        };
+        let weight = |k: usize| records[k].0.len().max(2) as f64 - 1.0;
+        let total: f64 = (0..one.len()).map(weight).sum();
+        let ms: f64 = one
+            .iter()
+            .enumerate()
+            .map(|(k, c)| weight(k) * c.rate_ref * c.rate_ref)
+            .sum::<f64>()
+            / total;
+        Context {
+            u_ref: one.iter().fold(0.0f64, |m, c| m.max(c.u_ref)),
+            rate_ref: ms.sqrt().max(1e-300),
+            t_ref: one.iter().fold(0.0f64, |m, c| m.max(c.t_ref)),
+            ..*first
+        }
+    }
+
     /// The same scales with inputs moving between samples by `hold`.
     pub fn with_hold(mut self, hold: Hold) -> Context {
         self.hold = hold;
@@ -295,6 +326,8 @@ pub struct Structure {
     ctx: Context,
     placement: Placement,
     specs: Vec<ParamSpec>,
+    /// Several records fitted jointly ([`Self::on_records`]); `None`: one record.
+    records: Option<Arc<records::Records>>,
 }
 
 /// Outcome of a simulation.
@@ -748,6 +781,7 @@ impl Structure {
             ctx,
             placement,
             specs,
+            records: None,
         }
     }
 
@@ -816,7 +850,18 @@ impl Structure {
     }
 
     /// Names of the linear coefficients, in [`LinearFit::coef`] order.
-    pub fn linear_names(&self) -> Vec<&'static str> {
+    pub fn linear_names(&self) -> Vec<String> {
+        if let Some(r) = &self.records {
+            return r.linear_names();
+        }
+        self.own_linear_names()
+            .into_iter()
+            .map(str::to_string)
+            .collect()
+    }
+
+    /// [`Self::linear_names`] of one record.
+    fn own_linear_names(&self) -> Vec<&'static str> {
         let mut v = match self.placement {
             Placement::After => vec!["d_e", "d0", "alpha"],
             Placement::Feedback => vec!["scale", "d0"],
@@ -886,6 +931,9 @@ impl Structure {
     /// departs from rest by at most `g` times the span of `D` (below the output's). Without
     /// the bound a slow element of no gain is a free decay per record: a drift named creep.
     pub fn state_bounds(&self, theta: &[f64], range: f64) -> Vec<(usize, f64)> {
+        if let Some(r) = &self.records {
+            return r.state_bounds(theta, range);
+        }
         let Some(form) = self.form(Effect::Creep) else {
             return Vec::new();
         };
@@ -913,11 +961,12 @@ impl Structure {
             .collect()
     }
 
+    /// Coefficients whose name (a further record's without its `@k`) passes `keep`.
     fn coefs_where(&self, keep: impl Fn(&str) -> bool) -> Vec<usize> {
         self.linear_names()
             .iter()
             .enumerate()
-            .filter(|(_, n)| keep(n))
+            .filter(|(_, n)| keep(records::base_name(n)))
             .map(|(i, _)| i)
             .collect()
     }
@@ -938,19 +987,34 @@ impl Structure {
         let mut parts: Vec<(Effect, Form)> =
             self.parts().into_iter().filter(|p| p.0 != e).collect();
         parts.push((e, form));
-        Structure::with_forms(&parts, self.fixed_n, self.ctx, self.placement)
+        self.same_records(Structure::with_forms(
+            &parts,
+            self.fixed_n,
+            self.ctx,
+            self.placement,
+        ))
     }
 
     /// The same structure without `e`.
     pub fn without(&self, e: Effect) -> Structure {
         let parts: Vec<(Effect, Form)> = self.parts().into_iter().filter(|p| p.0 != e).collect();
-        Structure::with_forms(&parts, self.fixed_n, self.ctx, self.placement)
+        self.same_records(Structure::with_forms(
+            &parts,
+            self.fixed_n,
+            self.ctx,
+            self.placement,
+        ))
     }
 
     /// The same effects with `dynamics` at `placement` (not nested across placements:
     /// [`Self::embed`] carries the shared parameters, the rest start neutral).
     pub fn with_placement(&self, placement: Placement) -> Structure {
-        Structure::with_forms(&self.parts(), self.fixed_n, self.ctx, placement)
+        self.same_records(Structure::with_forms(
+            &self.parts(),
+            self.fixed_n,
+            self.ctx,
+            placement,
+        ))
     }
 
     /// `theta` (a shape vector of this structure) carried into `other`, which must contain
@@ -971,7 +1035,8 @@ impl Structure {
 
     /// The same model for a record sampled every `dt`: the data scales of the training
     /// record kept (so every parameter means the same), its linear blocks and integrators
-    /// discretised for `dt` (the models are continuous-time).
+    /// discretised for `dt` (the models are continuous-time). One record: a structure on
+    /// several records gives its first record's model.
     pub fn at_interval(&self, dt: f64) -> Structure {
         Structure::with_forms(
             &self.parts(),
@@ -1120,6 +1185,9 @@ impl Structure {
     /// Simulates the regressor columns on input `u`: `[v, 1, -(1+ρr) α-free g]` after the
     /// post-hysteresis filters, plus the drift columns; column-major, `cols[j][k]`.
     fn columns(&self, theta: &[f64], u: &[f64]) -> (Vec<Vec<f64>>, Status) {
+        if let Some(r) = &self.records {
+            return r.columns(theta, u);
+        }
         let (varying, status) = self.varying_columns(theta, u);
         (self.assemble(varying, u.len()), status)
     }
@@ -1128,6 +1196,9 @@ impl Structure {
     /// [`Self::fixed_columns`]: `[v, g, creep states]` (or `[y, creep states]` in the
     /// feedback placement).
     fn varying_columns(&self, theta: &[f64], u: &[f64]) -> (Vec<Vec<f64>>, Status) {
+        if let Some(r) = &self.records {
+            return r.varying_columns(theta, u);
+        }
         let n = u.len();
         let sh = self.shape(theta);
         if self.placement == Placement::Feedback {
@@ -1336,6 +1407,9 @@ impl Structure {
     /// The columns that do not depend on the shape: the constant and the drift (`t/T,
     /// (t/T)²`, or the spline's hat functions over the record's own length).
     fn fixed_columns(&self, n: usize) -> Vec<Vec<f64>> {
+        if let Some(r) = &self.records {
+            return r.fixed_columns();
+        }
         let dt = self.ctx.dt;
         let mut cols = vec![vec![1.0; n]];
         match self.form(Effect::OffsetDrift) {
@@ -1367,6 +1441,9 @@ impl Structure {
     /// the drift follows the hysteretic column after the hysteresis, the constant in the
     /// feedback placement).
     fn fixed_indices(&self) -> Vec<usize> {
+        if let Some(r) = &self.records {
+            return r.fixed_indices();
+        }
         let drift = self.fixed_columns(0).len() - 1;
         let first = match self.placement {
             Placement::After => 3,
@@ -1651,6 +1728,9 @@ impl Structure {
     /// `gamma`, `n`, `d0` of eq. 3.1-3.3 on the data's own units), then each extension's in
     /// physical units (seconds, Hz, fractions).
     pub fn named_params(&self, theta: &[f64], coef: &[f64]) -> Vec<(String, f64)> {
+        if let Some(r) = &self.records {
+            return r.named_params(theta, coef);
+        }
         let sh = self.shape(theta);
         let mut v: Vec<(String, f64)> = match self.placement {
             Placement::After => {
@@ -1691,7 +1771,7 @@ impl Structure {
                 ]
             }
         };
-        let lin = self.linear_names();
+        let lin = self.own_linear_names();
         let at = |name: &str| lin.iter().position(|n| *n == name).map_or(0.0, |i| coef[i]);
         let dt = self.ctx.dt;
         v.push(("timing_offset_s".into(), sh.timing * dt));
@@ -2838,7 +2918,11 @@ pub(crate) mod tests {
         let fit = st.fit_linear(&plain.embed(&theta, &st), &u, &y);
         assert!(fit.cost < 1e-20, "{}", fit.cost);
         let names = st.linear_names();
-        let rec: Vec<&str> = st.record_coefs().iter().map(|&i| names[i]).collect();
+        let rec: Vec<&str> = st
+            .record_coefs()
+            .iter()
+            .map(|&i| names[i].as_str())
+            .collect();
         assert!(rec.contains(&"d0") && rec.contains(&"drift_k8") && !rec.contains(&"d_e"));
     }
 
