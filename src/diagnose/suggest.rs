@@ -358,11 +358,33 @@ mod tests {
             b[1 - t] - b[t]
         };
         let new = record(&x.signal, x.duration_s, 3);
+        // Diagnosed again with the proposed record beside the training one: the true
+        // reading is named, the other not.
+        let again = super::super::diagnose_with_tests(
+            &[train.clone(), new.clone()],
+            std::slice::from_ref(&validate),
+            &[],
+            &Options {
+                suggest: false,
+                ..opts.clone()
+            },
+        )
+        .unwrap();
+        let named = again.accepted_labels();
+        let other = effects.iter().find(|&&e| e != truth).unwrap();
+        assert!(
+            named.iter().any(|l| l.starts_with(truth.name()))
+                && !named.iter().any(|l| l.starts_with(other.name())),
+            "diagnosed with the proposed record: {named:?}; {}",
+            again.search_stop
+        );
         (lead(&train), lead(&new))
     }
 
     /// A 20 s creep, tied with a drift: the proposed steps and holds make it show (creep's
-    /// lead -120 on the training record, 3,086 on the proposed one).
+    /// lead -120 on the training record, 3,086 on the proposed one); diagnosed again with
+    /// the proposed record beside the training one, creep alone is named (validation at
+    /// 1.00x the noise floor).
     #[test]
     fn a_creep_tied_with_a_drift_is_separated_by_the_proposed_record() {
         let (before, after) = tie_separated_by_proposal(
@@ -379,7 +401,7 @@ mod tests {
     /// A sensor drift, tied with creep in the search's nested fits: on the proposed steps
     /// and holds creep would follow the input and the drift does not. Fitted afresh, the
     /// drift already leads on the training record (486); the proposed record doubles that
-    /// (1,065).
+    /// (1,065). Diagnosed again with it, the drift alone is named (0.97x the floor).
     #[test]
     fn a_drift_tied_with_creep_is_separated_by_the_proposed_record() {
         let (before, after) = tie_separated_by_proposal(
