@@ -587,8 +587,26 @@ fn the_p885_stack_is_diagnosed_with_its_start_up_found_and_its_creep_flagged() {
             "{text}"
         );
     }
-    let (text, json) = run(&["--trim-start", "1"], "trimmed");
+    let (text, json) = run(&["--trim-start", "1", "--suggest"], "trimmed");
     assert_eq!(json["left_out"], serde_json::json!(["creep"]), "{text}");
+    // No tie: the experiment asked for is the one that would settle the reading the
+    // identification run supports and the test run does not confirm.
+    let x = &json["next_experiment"];
+    let question = x["question"].as_str().unwrap_or_default();
+    assert!(question.contains("does not confirm"), "{text}");
+    let spec = x["signal"].as_str().unwrap();
+    let u = optbench::signal::Signal::parse(spec)
+        .unwrap()
+        .sample(0.005, x["duration_s"].as_f64().unwrap());
+    let (lo, hi) = u
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(*v), b.max(*v)));
+    assert!(lo >= -1e-9 && hi <= 3.6 + 1e-9, "{spec}: {lo}..{hi} V");
+    assert!(x["separation_over_noise"].as_f64().unwrap() > 3.0, "{text}");
+    assert!(
+        text.contains("next experiment (") && text.contains(spec),
+        "{text}"
+    );
     assert_eq!(json["samples"], serde_json::json!([7827, 13955]));
     let v = |set: &str| json[set]["validate_rmse"].as_f64().unwrap();
     assert!(v("final") < 0.8 * v("baseline"), "{text}");

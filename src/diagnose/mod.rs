@@ -1624,6 +1624,7 @@ pub fn diagnose_with_tests(
     let base_out = [base.out_t.clone(), base.out_v.clone()];
     let base_fitted = base.fitted.clone();
     let mut current = base;
+    let mut unconfirmed: Option<(Fitted, String, f64, String)> = None;
     let mut current_summary = baseline.clone();
     let mut candidates = Vec::new();
     let mut left_out = Vec::new();
@@ -1735,6 +1736,22 @@ pub fn diagnose_with_tests(
             }
             let pool = rest;
             remember(&mut memory, &pool, &tried, bic(&current.fitted, nt), nt);
+            // The reading the training record supports most that the validation record does
+            // not confirm: if the search stops here, --suggest asks for the recording that
+            // would settle it.
+            unconfirmed = verdicts
+                .iter()
+                .enumerate()
+                .filter(|(_, v)| !v.passed && v.delta_bic < -opts.bic_margin)
+                .min_by(|a, b| a.1.delta_bic.total_cmp(&b.1.delta_bic))
+                .map(|(i, v)| {
+                    (
+                        tried[i].fitted.clone(),
+                        format!("{} [{}]", pool[i].name(), pool[i].form()),
+                        v.delta_bic,
+                        parent.label(),
+                    )
+                });
             let mut record = |p: &Proposal, c: &Evaluated, v: &Verdict, candidates: &mut Vec<_>| {
                 evaluations += c.fitted.evaluations;
                 candidates.push(candidate(
@@ -2225,6 +2242,24 @@ pub fn diagnose_with_tests(
         .flat_map(|c| &c.ties)
         .find_map(|t| t.next_experiment.clone());
     diag.next_experiment = next;
+    if opts.suggest && diag.next_experiment.is_none() {
+        let last = unconfirmed.filter(|u| u.3 == current.fitted.structure.label());
+        if let Some((f, label, delta, _)) = last {
+            let mut x = suggest::design(
+                &f.single(),
+                &current.fitted.single(),
+                [label.clone(), diag.final_model.model.clone()],
+                &d.ut,
+                d.scope.dt,
+                noise,
+            );
+            x.question = format!(
+                "{label} gains {} in training BIC on the final model but the validation record does not confirm it",
+                crate::report::table::sig(-delta, 3)
+            );
+            diag.next_experiment = Some(x);
+        }
+    }
     Ok(diag)
 }
 

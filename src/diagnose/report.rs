@@ -236,6 +236,10 @@ pub fn text(d: &Diagnosis) -> String {
                 );
             }
         }
+    } else if let Some(x) = &d.next_experiment {
+        for line in x.lines() {
+            let _ = writeln!(s, "{line}");
+        }
     }
     let _ = writeln!(s, "search ended {}", d.search_stop);
     let _ = writeln!(s, "{} evaluations, {:.1} s", d.evaluations, d.wall_s);

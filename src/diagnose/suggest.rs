@@ -81,8 +81,11 @@ pub struct Probe {
 /// The proposed recording (`next_experiment` in `diagnosis.json`).
 #[derive(Clone, Debug, Serialize)]
 pub struct NextExperiment {
-    /// The two tied readings: `effect [form]` each.
+    /// The two readings to separate: `effect [form]` each (tied ones), or a candidate the
+    /// validation record did not confirm and the final model.
     pub tied: [String; 2],
+    /// What the recording would settle.
+    pub question: String,
     pub kind: String,
     pub signal: String,
     pub duration_s: f64,
@@ -255,6 +258,7 @@ pub(super) fn design(
             )
         });
     NextExperiment {
+        question: format!("tie: the records cannot tell {} from {}", tied[0], tied[1]),
         tied,
         kind: best.kind,
         signal: best.signal,
@@ -270,7 +274,8 @@ impl NextExperiment {
     /// Lines for the text report.
     pub fn lines(&self) -> Vec<String> {
         let mut v = vec![format!(
-            "next experiment to separate {} from {}: record {} s at dt = {} s of the {} `{}`: one fitted model, all its parameters refitted, leaves {} times the noise floor (RMS) of the other's prediction unexplained",
+            "next experiment ({}) to separate {} from {}: record {} s at dt = {} s of the {} `{}`: one fitted model, all its parameters refitted, leaves {} times the noise floor (RMS) of the other's prediction unexplained",
+            self.question,
             self.tied[0],
             self.tied[1],
             sig(self.duration_s, 3),
