@@ -166,7 +166,7 @@ fn diagnose_costs(c: &mut Criterion) {
                 _ => s.neutral,
             })
             .collect();
-        let proj = st.projection(&y);
+        let proj = st.projection(&u, &y);
         g.bench_function(BenchmarkId::new("projected", name), |b| {
             b.iter(|| black_box(st.fit_linear_projected(&theta, &u, &y, &proj).cost))
         });

@@ -686,8 +686,10 @@ fn another_input_driving_the_output_is_reported_as_coupling() {
 /// its own: one joint fit shares the actuator's creep and hysteresis, refits each record's
 /// offset, initial state and timing, names creep with the twin's gains and time constants,
 /// and returns the offsets as given; validated on two records at a third rate, at the
-/// noise floor. The step record alone identifies too little of the loop to predict the
-/// triangle.
+/// noise floor, one of them starting at the top of the range (its initial states found by
+/// a grid before the polish, its creep states bounded by the excursion from 0 V that
+/// brought it there: before, 5.6x the floor without creep, 2.7x with). The step record
+/// alone identifies too little of the loop to predict the triangle.
 #[test]
 fn several_records_at_several_rates_are_fitted_together() {
     use optbench::diagnose::diagnose_with_tests;
@@ -715,11 +717,13 @@ fn several_records_at_several_rates_are_fitted_together() {
     ];
     let validate = [
         record("triangle:freq=0.6,amp=2.1,offset=2.35", 2e-3, 5.0, -0.03, 3),
-        record("steps:levels=0.5;4.0;1.0;2.5,hold=1.5", 2e-3, 6.0, 0.02, 4),
+        // Starts at the top of the range, where the twin was stepped from 0 V before
+        // recording: its hysteretic and creep states are its own and far from rest.
+        record("steps:levels=4.0;1.0;2.5,hold=1.5", 2e-3, 4.5, 0.02, 4),
     ];
     let d = diagnose_with_tests(&train, &validate, &[], &opts(1)).unwrap();
     assert_eq!(d.accepted_labels(), ["creep"], "{}", d.search_stop);
-    assert_eq!(d.samples, [6000 + 2400, 2500 + 3000]);
+    assert_eq!(d.samples, [6000 + 2400, 2500 + 2250]);
     let p = &d.final_model.params;
     for (name, want) in [
         ("creep_gain", 0.04),

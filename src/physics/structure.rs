@@ -25,7 +25,7 @@
 //!   element (τ₁ from 10 samples to a quarter of the record) and one slow (τ₂ from a
 //!   quarter of the record to ten records), as a piezo creeps on both scales. Each
 //!   element's state at a record's start is the record's own, within the element's gain
-//!   times the output's span ([`Structure::state_bounds`]).
+//!   times how far the output moved ([`Structure::state_bounds`]).
 //! - `dynamics`: second-order mode `ÿ + 2ζω ẏ + ω² y = ω² x` after the hysteresis,
 //!   parametrised by `p = 1/ω` (s; `p = 0` passes `x` through) and `ζ`.
 //! - `offset-drift`: `y += a1 t/T + a2 (t/T)²` (T the training duration), two more
@@ -927,9 +927,10 @@ impl Structure {
     }
 
     /// Largest magnitude of each creep initial state (coefficient index, bound) on a record
-    /// whose output spans `range`: an element of gain `g` low-passes `g D`, so its state
-    /// departs from rest by at most `g` times the span of `D` (below the output's). Without
-    /// the bound a slow element of no gain is a free decay per record: a drift named creep.
+    /// whose output moved by `range` ([`Self::state_range`]): an element of gain `g`
+    /// low-passes `g D`, so its state departs from its equilibrium by at most `g` times how
+    /// far `D` moved. Without the bound a slow element of no gain is a free decay per
+    /// record: a drift named creep.
     pub fn state_bounds(&self, theta: &[f64], range: f64) -> Vec<(usize, f64)> {
         if let Some(r) = &self.records {
             return r.state_bounds(theta, range);
@@ -1579,7 +1580,7 @@ impl Structure {
     /// `cost_cap(y) (2 - at/N)`, above every stable cost and higher the earlier it fails.
     pub fn fit_linear(&self, theta: &[f64], u: &[f64], y: &[f64]) -> LinearFit {
         let len = u.len().min(y.len());
-        self.fit_linear_projected(theta, u, y, &self.projection(&y[..len]))
+        self.fit_linear_projected(theta, u, y, &self.projection(&u[..len], &y[..len]))
     }
 
     /// [`Self::fit_linear`] the direct way: every column, the fixed ones included, by
@@ -1593,7 +1594,8 @@ impl Structure {
         if let Status::Unstable { at } = status {
             return LinearFit::unstable(cols.len(), cap, at, len);
         }
-        let coef = bounded_least_squares(&cols, y, &self.state_bounds(theta, span(y)));
+        let coef =
+            bounded_least_squares(&cols, y, &self.state_bounds(theta, self.state_range(u, y)));
         let cost: f64 = (0..len)
             .map(|k| {
                 let m: f64 = cols.iter().zip(&coef).map(|(c, b)| c[k] * b).sum();
@@ -1610,8 +1612,31 @@ impl Structure {
     /// The shape-independent part of [`Self::fit_linear`] on record `y`, computed once per
     /// fit: each evaluation then orthogonalises only the few shape-dependent columns (a
     /// spline drift adds up to 16 fixed ones).
-    pub fn projection(&self, y: &[f64]) -> Projection {
-        Projection::new(self.fixed_indices(), &self.fixed_columns(y.len()), y)
+    pub fn projection(&self, u: &[f64], y: &[f64]) -> Projection {
+        let mut p = Projection::new(self.fixed_indices(), &self.fixed_columns(y.len()), y);
+        p.span = self.state_range(u, y);
+        p
+    }
+
+    /// How far the output of a record `(u, y)` moved, for the creep states' bounds
+    /// ([`Self::state_bounds`]): its span, or more for a record that starts far from 0 V
+    /// (the actuator was brought there before recording began, so its creep states hold
+    /// that excursion: the output's slope on the input times the first input's magnitude).
+    /// The most any of a joint structure's records needs.
+    pub fn state_range(&self, u: &[f64], y: &[f64]) -> f64 {
+        match self.records() {
+            Some(parts) if u.len() == parts.iter().map(|p| p.0).sum::<usize>() => {
+                let mut from = 0;
+                parts
+                    .iter()
+                    .map(|&(n, _)| {
+                        from += n;
+                        reach(&u[from - n..from], &y[from - n..from])
+                    })
+                    .fold(0.0, f64::max)
+            }
+            _ => reach(u, y),
+        }
     }
 
     /// [`Self::fit_linear`] with the fixed columns' [`Projection`] of the same `y`.
@@ -1703,7 +1728,7 @@ impl Structure {
                 .collect();
             let sub: Vec<Vec<f64>> = nuisance.iter().map(|&j| cols[j][..n].to_vec()).collect();
             let bounds: Vec<(usize, f64)> = self
-                .state_bounds(theta, span(&y[..n]))
+                .state_bounds(theta, self.state_range(&u[..n], &y[..n]))
                 .into_iter()
                 .filter_map(|(j, b)| nuisance.iter().position(|&k| k == j).map(|i| (i, b)))
                 .collect();
@@ -1886,8 +1911,8 @@ pub struct Projection {
     y_perp: Vec<f64>,
     /// `Hᵀ y`.
     hty: Vec<f64>,
-    /// Span of `y` ([`span`]), which bounds the creep states: once per fit, not per
-    /// evaluation.
+    /// How far the output moved ([`Structure::state_range`]), which bounds the creep
+    /// states: once per fit, not per evaluation.
     span: f64,
 }
 
@@ -2283,6 +2308,34 @@ fn gram_least_squares(cols: &[Vec<f64>], y: &[f64], bounds: &[(usize, f64)]) -> 
     active_set(bounds, solve).unwrap_or_else(|| bounded_least_squares(cols, y, bounds))
 }
 
+/// [`span`] of `y`, or the output's least-squares slope on the input times `|u[0]|` where
+/// that is more: how far a record's output moved since the actuator rested at 0 V.
+fn reach(u: &[f64], y: &[f64]) -> f64 {
+    let n = u.len().min(y.len());
+    let (u, y) = (&u[..n], &y[..n]);
+    let here = span(y);
+    if n < 2 {
+        return here;
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / n as f64;
+    let (mu, my) = (mean(u), mean(y));
+    let (mut suy, mut suu) = (0.0, 0.0);
+    for (a, b) in u.iter().zip(y) {
+        suy += (a - mu) * (b - my);
+        suu += (a - mu) * (a - mu);
+    }
+    let before = if suu > 0.0 {
+        (suy / suu).abs() * u[0].abs()
+    } else {
+        0.0
+    };
+    if before.is_finite() {
+        here.max(before)
+    } else {
+        here
+    }
+}
+
 /// Max minus min of a record (0 if empty or not finite).
 fn span(y: &[f64]) -> f64 {
     let (lo, hi) = y
@@ -2302,6 +2355,29 @@ pub(crate) mod tests {
     use super::*;
     use crate::physics::bouc_wen;
     use crate::physics::twin::{self, TwinConfig};
+
+    /// A record that starts far from 0 V bounds its creep states by the excursion that
+    /// brought it there (slope times its first input), one near 0 V by its span; a joint
+    /// structure takes the most any of its records needs.
+    #[test]
+    fn creep_states_are_bounded_by_how_far_the_output_moved_since_rest() {
+        let dt = 1e-3;
+        let high: Vec<f64> = (0..1000).map(|k| 4.0 - 0.5 * k as f64 / 1000.0).collect();
+        let low: Vec<f64> = high.iter().map(|x| x - 3.9).collect();
+        let out = |u: &[f64]| -> Vec<f64> { u.iter().map(|x| 0.15 * x - 0.2).collect() };
+        let st = Structure::new(
+            &[Effect::Creep],
+            Some(1.0),
+            Context::from_training(&high, dt),
+        );
+        let (yh, yl) = (out(&high), out(&low));
+        assert!((st.state_range(&high, &yh) - 0.6).abs() < 1e-9);
+        assert!((st.state_range(&low, &yl) - span(&yl)).abs() < 1e-12);
+        let joint = st.on_records(&[(1000, dt), (1000, 2.0 * dt)]);
+        let u: Vec<f64> = low.iter().chain(&high).copied().collect();
+        let y: Vec<f64> = yl.iter().chain(&yh).copied().collect();
+        assert!((joint.state_range(&u, &y) - 0.6).abs() < 1e-9);
+    }
 
     /// A model carried to half the sampling interval is the same continuous-time model: a
     /// mode, a delay counted in samples and a drive filter give the same output at the
@@ -3365,7 +3441,7 @@ pub(crate) mod tests {
             }
             // The residuals a Gauss-Newton polish linearises are the fit's own: y minus
             // every column (the fixed ones included) times its coefficient.
-            let (with_r, r) = st.fit_linear_residuals(&theta, &u, &y, &st.projection(&y));
+            let (with_r, r) = st.fit_linear_residuals(&theta, &u, &y, &st.projection(&u, &y));
             assert_eq!(with_r.cost.to_bits(), fit.cost.to_bits());
             assert_eq!(r.len(), y.len());
             let scale = y.iter().fold(0.0f64, |m, x| m.max(x.abs()));
