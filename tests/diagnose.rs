@@ -724,6 +724,18 @@ fn several_records_at_several_rates_are_fitted_together() {
     let d = diagnose_with_tests(&train, &validate, &[], &opts(1)).unwrap();
     assert_eq!(d.accepted_labels(), ["creep"], "{}", d.search_stop);
     assert_eq!(d.samples, [6000 + 2400, 2500 + 2250]);
+    assert_eq!(
+        d.records,
+        [
+            vec![(6000, 1e-3), (2400, 2.5e-3)],
+            vec![(2500, 2e-3), (2250, 2e-3)]
+        ]
+    );
+    let text = optbench::diagnose::report::text(&d);
+    assert!(
+        text.contains("(2 records: 6000 every 0.001 s, 2400 every 0.0025 s)"),
+        "{text}"
+    );
     let p = &d.final_model.params;
     for (name, want) in [
         ("creep_gain", 0.04),
@@ -744,5 +756,57 @@ fn several_records_at_several_rates_are_fitted_together() {
     assert!(
         ratio_alone > 3.0,
         "one record: {ratio_alone}x the noise floor"
+    );
+}
+
+/// The command takes --train and --validate more than once; the JSON lists the records and
+/// the figures put them on one time axis, each at its own interval.
+#[test]
+fn command_takes_several_records() {
+    use optbench::physics::twin::{self, TwinConfig};
+    use optbench::recording::Columns;
+    use optbench::signal::Signal;
+    let cfg = TwinConfig::parse_overrides("amp=off,mode=off,creep=on").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let columns = Columns::parse("t,u,y").unwrap();
+    for (name, spec, dt, seconds) in [
+        (
+            "a.csv",
+            "steps:levels=0.5;4.2;1.5;3.3;0.8,hold=1.2",
+            1e-3,
+            6.0,
+        ),
+        ("b.csv", "sine:freq=0.8,amp=2.0,offset=2.35", 2.5e-3, 6.0),
+        ("c.csv", "triangle:freq=0.6,amp=2.1,offset=2.35", 2e-3, 5.0),
+    ] {
+        let u = Signal::parse(spec).unwrap().sample(dt, seconds);
+        twin::recording(&cfg, name, u, dt, 1)
+            .unwrap()
+            .write_csv(&dir.path().join(name), &columns)
+            .unwrap();
+    }
+    let args: Vec<&str> = "--train a.csv --train b.csv --validate c.csv --model bouc-wen-n1"
+        .split(' ')
+        .collect();
+    let (text, json) = diagnose_command(&args, dir.path(), "out");
+    assert_eq!(json["left_out"], serde_json::json!(["creep"]), "{text}");
+    assert_eq!(
+        json["records"][0],
+        serde_json::json!([[6000, 0.001], [2400, 0.0025]])
+    );
+    assert!(
+        text.contains("2 records: 6000 every 0.001 s, 2400 every 0.0025 s"),
+        "{text}"
+    );
+    assert!(dir.path().join("out/train_residual_time.png").exists());
+    let periodic: Vec<&str> =
+        "diagnose --train a.csv --validate c.csv --validate a.csv --validate-periodic"
+            .split(' ')
+            .collect();
+    let (code, err) = code_and_stderr(&periodic, dir.path());
+    assert_eq!(code, Some(2));
+    assert!(
+        err.contains("--validate-periodic takes one validation record"),
+        "{err}"
     );
 }

@@ -221,8 +221,11 @@ pub struct Diagnosis {
     pub validate: String,
     pub unit: String,
     pub samples: [usize; 2],
-    /// Sampling interval of each record (s); each is simulated at its own.
+    /// Sampling interval of each record (s; the first record's of several); each is
+    /// simulated at its own.
     pub sampling_intervals_s: [f64; 2],
+    /// Training and validation records as `[samples, interval s]` each, in the order given.
+    pub records: [Vec<(usize, f64)>; 2],
     pub noise_floor: f64,
     /// Whether both records' noise floors have settled ([`residual::noise_floor_and_settled`]);
     /// if not, the floor is an upper bound and the noise-floor stop is off.
@@ -332,8 +335,10 @@ pub struct Series {
     /// Baseline and final outputs on training (0) and validation (1) data.
     pub baseline: [Vec<f64>; 2],
     pub final_model: [Vec<f64>; 2],
-    /// Sampling interval of each record.
+    /// Sampling interval of each record (the first one's, for several).
     pub dt: [f64; 2],
+    /// The records of each set (samples, interval), concatenated in the series.
+    pub parts: [Vec<(usize, f64)>; 2],
     pub final_label: String,
 }
 
@@ -1455,6 +1460,21 @@ impl Joined {
     }
 }
 
+/// Time stamps of joined records for figures: each record at its own interval, one after
+/// the other from the first's start.
+fn times(j: &Joined) -> Vec<f64> {
+    if !j.several() {
+        return j.record.t.clone();
+    }
+    let mut t = Vec::with_capacity(j.record.len());
+    let mut at = j.record.t.first().copied().unwrap_or(0.0);
+    for &(n, dt) in &j.parts {
+        t.extend((0..n).map(|k| at + k as f64 * dt));
+        at += n as f64 * dt;
+    }
+    t
+}
+
 /// The inputs of the records `parts` (samples, interval) concatenated in `r`.
 fn train_inputs<'a>(parts: &[(usize, f64)], r: &'a Recording) -> Vec<(&'a [f64], f64)> {
     let mut from = 0;
@@ -2175,12 +2195,13 @@ pub fn diagnose_with_tests(
     let structured = current_summary.p_value <= 0.05 && current.score > threshold;
     let unexplained = structured && current_summary.validate_rmse > resolution;
     let series = Series {
-        t: [train.t.clone(), validate.t.clone()],
+        t: [times(&tj), times(&vj)],
         u: [train.u.clone(), validate.u.clone()],
         y: [train.y.clone(), validate.y.clone()],
         baseline: base_out,
         final_model: [current.out_t.clone(), current.out_v.clone()],
         dt: [dt, dv],
+        parts: [tj.parts.clone(), vj.parts.clone()],
         final_label: current_summary.model.clone(),
     };
     let nuisances = {
@@ -2213,6 +2234,7 @@ pub fn diagnose_with_tests(
         unit,
         samples: [train.len(), validate.len()],
         sampling_intervals_s: [dt, dv],
+        records: [tj.parts.clone(), vj.parts.clone()],
         noise_floor: noise,
         noise_floor_settled: floor_settled,
         exponent: n_choice,

@@ -25,16 +25,31 @@ pub fn text(d: &Diagnosis) -> String {
             t
         }
     };
+    // `N samples every dt s`, or for several records each one's.
+    let sampled = |i: usize| -> String {
+        let parts = &d.series.parts[i];
+        if parts.len() > 1 {
+            let each: Vec<String> = parts
+                .iter()
+                .map(|&(n, dt)| format!("{n} every {} s", step(dt)))
+                .collect();
+            format!("{} records: {}", parts.len(), each.join(", "))
+        } else {
+            format!(
+                "{} samples every {} s",
+                d.samples[i],
+                step(d.sampling_intervals_s[i])
+            )
+        }
+    };
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "diagnosis of {} ({} samples every {} s) against {} ({} samples every {} s), model {}",
+        "diagnosis of {} ({}) against {} ({}), model {}",
         d.train,
-        d.samples[0],
-        step(d.sampling_intervals_s[0]),
+        sampled(0),
         d.validate,
-        d.samples[1],
-        step(d.sampling_intervals_s[1]),
+        sampled(1),
         d.model
     );
     let _ = writeln!(
@@ -294,7 +309,27 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
         }
     };
     let fl = s.final_label.clone();
-    for (set, i) in [("train", 0), ("validate", 1)] {
+    for (name, i) in [("train", 0), ("validate", 1)] {
+        let parts = &s.parts[i];
+        // Several records: said in every title, with where each further one starts.
+        let set = if parts.len() > 1 {
+            let mut from = 0;
+            let starts: Vec<String> = parts[..parts.len() - 1]
+                .iter()
+                .map(|&(n, _)| {
+                    from += n;
+                    format!("{} s", sig(s.t[i][from] - s.t[i][0], 3))
+                })
+                .collect();
+            format!(
+                "{name} ({} records back to back; the next from {})",
+                parts.len(),
+                starts.join(", ")
+            )
+        } else {
+            name.to_string()
+        };
+        let set = set.as_str();
         let eb: Vec<f64> = s.y[i]
             .iter()
             .zip(&s.baseline[i])
@@ -309,7 +344,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
             s.t[i].iter().copied().zip(e.iter().copied()).collect()
         };
         plots::lines(
-            &dir.join(format!("{set}_residual_time")),
+            &dir.join(format!("{name}_residual_time")),
             &format!("{set}: residual over time"),
             &[
                 ("baseline (bouc-wen)".into(), pts(&eb)),
@@ -322,7 +357,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
         let [br, bf] = binned(&s.u[i], &eb);
         let [fr, ff] = binned(&s.u[i], &ef);
         plots::lines(
-            &dir.join(format!("{set}_residual_loop")),
+            &dir.join(format!("{name}_residual_loop")),
             &format!("{set}: mean residual by input and direction"),
             &[
                 ("baseline, u rising".into(), br),
@@ -334,8 +369,19 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
             &unit(2, "mean residual"),
             (false, false),
         )?;
-        let sb = residual::spectra(&s.u[i], &eb, s.dt[i], 1024);
-        let sf = residual::spectra(&s.u[i], &ef, s.dt[i], 1024);
+        // A spectrum needs one sampling interval: the records at the first one's.
+        let one_rate = if parts.len() > 1 {
+            parts
+                .iter()
+                .take_while(|p| crate::physics::structure::same_interval(p.1, s.dt[i]))
+                .map(|p| p.0)
+                .sum::<usize>()
+                .min(eb.len())
+        } else {
+            eb.len()
+        };
+        let sb = residual::spectra(&s.u[i][..one_rate], &eb[..one_rate], s.dt[i], 1024);
+        let sf = residual::spectra(&s.u[i][..one_rate], &ef[..one_rate], s.dt[i], 1024);
         let floor = 2.0 * d.noise_floor * d.noise_floor * s.dt[i];
         let psd = |sp: &residual::Spectra| -> Vec<(f64, f64)> {
             sp.freq
@@ -352,8 +398,12 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
             format!("residual PSD [{}²/Hz]", d.unit)
         };
         plots::lines(
-            &dir.join(format!("{set}_residual_spectrum")),
-            &format!("{set}: residual spectrum (Welch)"),
+            &dir.join(format!("{name}_residual_spectrum")),
+            &if one_rate < eb.len() {
+                format!("{set}: residual spectrum (Welch; the records at the first's rate)")
+            } else {
+                format!("{set}: residual spectrum (Welch)")
+            },
             &[
                 ("baseline".into(), psd(&sb)),
                 (format!("final ({fl})"), psd(&sf)),
@@ -364,7 +414,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
             (true, true),
         )?;
         plots::loops(
-            &dir.join(format!("{set}_loops")),
+            &dir.join(format!("{name}_loops")),
             &format!("{set}: measured and model loops"),
             &s.u[i],
             &s.y[i],
