@@ -443,6 +443,15 @@ fn command_reads_lab_files_and_resamples_on_request() {
         for s in steps.as_array().unwrap() {
             assert!((s.as_f64().unwrap() / 1e-3 - 1.0).abs() < 1e-7, "{steps}");
         }
+        // The same steps, with each record's length.
+        let records = j.as_object_mut().unwrap().remove("records").unwrap();
+        for r in records.as_array().unwrap() {
+            assert_eq!(r[0][0], 2000, "{records}");
+            assert!(
+                (r[0][1].as_f64().unwrap() / 1e-3 - 1.0).abs() < 1e-7,
+                "{records}"
+            );
+        }
         for set in ["baseline", "final"] {
             for f in j[set]["plausibility"].as_array_mut().unwrap() {
                 if f["parameter"] == "timing_offset_s" {
