@@ -176,7 +176,7 @@ pub struct FitArgs {
     pub delimiter: Option<crate::recording::Delimiter>,
     /// Seconds left out at the start of every CSV recording (training and validation): for
     /// records that start in motion (`diagnose` reports such a start-up).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub trim_start: Option<f64>,
     /// Function evaluations (default: the seed's 200 individuals x 150 iterations).
     #[arg(long, default_value_t = 30_000)]

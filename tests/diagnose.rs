@@ -818,4 +818,13 @@ fn command_takes_several_records() {
         err.contains("--validate-periodic takes one validation record"),
         "{err}"
     );
+    let negative: Vec<&str> = "diagnose --train a.csv --validate c.csv --trim-start -1"
+        .split(' ')
+        .collect();
+    let (code, err) = code_and_stderr(&negative, dir.path());
+    assert_eq!(code, Some(2));
+    assert!(
+        err.contains("--trim-start -1: expected the seconds (>= 0)"),
+        "{err}"
+    );
 }

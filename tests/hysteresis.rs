@@ -418,6 +418,10 @@ fn fit_and_suites_read_lab_files_and_resample_on_request() {
         err.contains("cannot leave out the first 5 s") && err.contains("must remain"),
         "{err}"
     );
+    // A negative value reaches the check (not taken for a flag) and is refused by name.
+    let (code, err) = fit("plain.csv", &["--trim-start", "-1"], "t3");
+    assert_eq!(code, Some(2));
+    assert!(err.contains("`trim_start`: -1 is out of range"), "{err}");
     // The suite keys.
     let suite = "name = \"lab\"\nseed = 1\ntrials = 1\nbudget = 60\n\n[[objective]]\n\
                  kind = \"bouc-wen\"\nid = \"gap\"\nrecording = \"gap.csv\"\n\

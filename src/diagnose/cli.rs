@@ -37,7 +37,7 @@ pub struct DiagnoseArgs {
     /// Seconds left out at the start of every record (training, validation, test): for
     /// records that start in motion, e.g. a stage stepped from rest to the first command as
     /// recording began (the report's 'starts in motion' finding suggests a value).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub trim_start: f64,
     /// Output folder (default: results/diagnose, or results/diagnose-proof with --proof).
     #[arg(long)]
@@ -217,6 +217,12 @@ pub fn run(a: DiagnoseArgs) -> Result<String> {
     };
     if a.train.is_empty() || a.validate.is_empty() {
         return Err(Error::Input("--train and --validate are required".into()));
+    }
+    if !(a.trim_start.is_finite() && a.trim_start >= 0.0) {
+        return Err(Error::Input(format!(
+            "--trim-start {}: expected the seconds (>= 0) to leave out at the start of every record",
+            a.trim_start
+        )));
     }
     let records = |paths: &[PathBuf]| -> Result<Vec<Recording>> {
         paths

@@ -17,11 +17,22 @@ pub fn sig(x: f64, sig: usize) -> String {
     }
 }
 
-/// Renders rows as an aligned Markdown table (readable raw and pasteable).
+/// A cell's `|` escaped, so it stays one cell when rendered (`true | false`).
+fn cell(c: &str) -> String {
+    c.replace('|', "\\|")
+}
+
+/// Renders rows as an aligned Markdown table (readable raw and pasteable); a `|` inside a
+/// cell is escaped.
 pub fn markdown(header: &[&str], rows: &[Vec<String>], right_align: &[bool]) -> String {
+    let header: Vec<String> = header.iter().map(|h| cell(h)).collect();
+    let rows: Vec<Vec<String>> = rows
+        .iter()
+        .map(|r| r.iter().map(|c| cell(c)).collect())
+        .collect();
     let n = header.len();
     let mut width: Vec<usize> = header.iter().map(|h| h.chars().count()).collect();
-    for r in rows {
+    for r in &rows {
         for (w, c) in width.iter_mut().zip(r) {
             *w = (*w).max(c.chars().count());
         }
@@ -38,7 +49,7 @@ pub fn markdown(header: &[&str], rows: &[Vec<String>], right_align: &[bool]) -> 
         }
         s + "\n"
     };
-    let mut out = line(header.iter().map(|h| h.to_string()).collect());
+    let mut out = line(header.clone());
     let mut sep = String::from("|");
     for (i, w) in width.iter().enumerate().take(n) {
         if right_align.get(i).copied().unwrap_or(false) {
@@ -49,7 +60,7 @@ pub fn markdown(header: &[&str], rows: &[Vec<String>], right_align: &[bool]) -> 
     }
     out += &sep;
     out.push('\n');
-    for r in rows {
+    for r in &rows {
         out += &line(r.clone());
     }
     out
@@ -76,5 +87,11 @@ mod tests {
             &[false, true],
         );
         assert_eq!(t, "| a   | bb |\n| --- | -: |\n| xyz |  1 |\n");
+        // A `|` in a cell stays in its cell: every line has as many separators.
+        let t = markdown(&["kind"], &[vec!["true | false".into()]], &[]);
+        assert_eq!(
+            t,
+            "| kind          |\n| ------------- |\n| true \\| false |\n"
+        );
     }
 }
