@@ -808,23 +808,19 @@ fn command_takes_several_records() {
         "{text}"
     );
     assert!(dir.path().join("out/train_residual_time.png").exists());
-    let periodic: Vec<&str> =
-        "diagnose --train a.csv --validate c.csv --validate a.csv --validate-periodic"
-            .split(' ')
-            .collect();
-    let (code, err) = code_and_stderr(&periodic, dir.path());
-    assert_eq!(code, Some(2));
-    assert!(
-        err.contains("--validate-periodic takes one validation record"),
-        "{err}"
+    // Refused with exit code 2 and the reason.
+    let refused = |args: &str, why: &str| {
+        let a: Vec<&str> = args.split(' ').collect();
+        let (code, err) = code_and_stderr(&a, dir.path());
+        assert_eq!(code, Some(2), "{args}");
+        assert!(err.contains(why), "{err}");
+    };
+    refused(
+        "diagnose --train a.csv --validate c.csv --validate a.csv --validate-periodic",
+        "--validate-periodic takes one validation record",
     );
-    let negative: Vec<&str> = "diagnose --train a.csv --validate c.csv --trim-start -1"
-        .split(' ')
-        .collect();
-    let (code, err) = code_and_stderr(&negative, dir.path());
-    assert_eq!(code, Some(2));
-    assert!(
-        err.contains("--trim-start -1: expected the seconds (>= 0)"),
-        "{err}"
+    refused(
+        "diagnose --train a.csv --validate c.csv --trim-start -1",
+        "--trim-start -1: expected the seconds (>= 0)",
     );
 }

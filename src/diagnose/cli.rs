@@ -242,21 +242,19 @@ pub fn run(a: DiagnoseArgs) -> Result<String> {
     }
     let mut d = diagnose_with_tests(&train, &validate, &tests, &opts)?;
     // Columns every validation file holds, concatenated as the records are.
-    let mut others: Vec<(String, Vec<f64>)> = Vec::new();
-    for (k, v) in a.validate.iter().enumerate() {
-        let here = other_inputs(v, &columns, &ropts, a.trim_start);
-        others = if k == 0 {
-            here
-        } else {
-            others
-                .into_iter()
-                .filter_map(|(n, mut x)| {
-                    let more = &here.iter().find(|h| h.0 == n)?.1;
-                    x.extend(more);
-                    Some((n, x))
-                })
-                .collect()
-        };
+    let mut files = a
+        .validate
+        .iter()
+        .map(|v| other_inputs(v, &columns, &ropts, a.trim_start));
+    let mut others = files.next().unwrap_or_default();
+    for here in files {
+        others.retain_mut(|(n, x)| match here.iter().find(|h| &h.0 == n) {
+            Some(more) => {
+                x.extend(&more.1);
+                true
+            }
+            None => false,
+        });
     }
     d.couplings = coupling::couplings(&d, &others);
     let out = a.out.unwrap_or_else(|| PathBuf::from("results/diagnose"));

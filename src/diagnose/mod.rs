@@ -335,10 +335,9 @@ pub struct Series {
     /// Baseline and final outputs on training (0) and validation (1) data.
     pub baseline: [Vec<f64>; 2],
     pub final_model: [Vec<f64>; 2],
-    /// Sampling interval of each record (the first one's, for several).
+    /// Sampling interval of each record (the first one's, for several; each one's in
+    /// [`Diagnosis::records`]).
     pub dt: [f64; 2],
-    /// The records of each set (samples, interval), concatenated in the series.
-    pub parts: [Vec<(usize, f64)>; 2],
     pub final_label: String,
 }
 
@@ -1390,9 +1389,9 @@ pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Resu
     )
 }
 
-/// Several records as one: concatenated (time counted on at the first record's interval,
-/// for figures only) with each record's length and sampling interval, its pooled noise
-/// floor and whether every record's floor settled.
+/// Several records as one: concatenated (time counted on at the first record's interval)
+/// with each record's length and sampling interval, their pooled noise floor and whether
+/// every record's floor settled.
 struct Joined {
     record: Recording,
     parts: Vec<(usize, f64)>,
@@ -1415,42 +1414,37 @@ impl Joined {
                 r.len()
             )));
         }
-        let first = &records[0];
-        if records.len() == 1 {
-            let (noise, settled) = residual::noise_floor_and_settled(&first.y);
-            return Ok(Joined {
-                record: first.clone(),
-                parts: vec![(first.len(), first.dt())],
-                noise,
-                settled,
-            });
-        }
-        let cat = |f: fn(&Recording) -> &Vec<f64>| -> Vec<f64> {
-            records.iter().flat_map(|r| f(r).iter().copied()).collect()
-        };
-        let name = records
-            .iter()
-            .map(|r| r.name.as_str())
-            .collect::<Vec<_>>()
-            .join(" + ");
-        let mut record = Recording::uniform(name, first.dt(), cat(|r| &r.u), cat(|r| &r.y))?;
-        record.units = first.units.clone();
         let floors: Vec<(f64, bool)> = records
             .iter()
             .map(|r| residual::noise_floor_and_settled(&r.y))
             .collect();
         let n: usize = records.iter().map(Recording::len).sum();
-        let noise = (records
+        let power: f64 = records
             .iter()
             .zip(&floors)
             .map(|(r, f)| r.len() as f64 * f.0 * f.0)
-            .sum::<f64>()
-            / n as f64)
-            .sqrt();
+            .sum();
+        let first = &records[0];
+        // One record keeps its own time stamps.
+        let record = if records.len() == 1 {
+            first.clone()
+        } else {
+            let cat = |f: fn(&Recording) -> &Vec<f64>| -> Vec<f64> {
+                records.iter().flat_map(|r| f(r).iter().copied()).collect()
+            };
+            let name = records
+                .iter()
+                .map(|r| r.name.as_str())
+                .collect::<Vec<_>>()
+                .join(" + ");
+            let mut r = Recording::uniform(name, first.dt(), cat(|r| &r.u), cat(|r| &r.y))?;
+            r.units = first.units.clone();
+            r
+        };
         Ok(Joined {
             record,
             parts: records.iter().map(|r| (r.len(), r.dt())).collect(),
-            noise,
+            noise: (power / n as f64).sqrt(),
             settled: floors.iter().all(|f| f.1),
         })
     }
@@ -1458,33 +1452,42 @@ impl Joined {
     fn several(&self) -> bool {
         self.parts.len() > 1
     }
+
+    /// Time stamps for figures: each record at its own interval, one after the other from
+    /// the first's start.
+    fn times(&self) -> Vec<f64> {
+        if !self.several() {
+            return self.record.t.clone();
+        }
+        let mut t = Vec::with_capacity(self.record.len());
+        let mut at = self.record.t.first().copied().unwrap_or(0.0);
+        for &(n, dt) in &self.parts {
+            t.extend((0..n).map(|k| at + k as f64 * dt));
+            at += n as f64 * dt;
+        }
+        t
+    }
+
+    /// Each record's input with its interval.
+    fn inputs(&self) -> Vec<(&[f64], f64)> {
+        let mut from = 0;
+        self.parts
+            .iter()
+            .map(|&(n, dt)| {
+                from += n;
+                (&self.record.u[from - n..from], dt)
+            })
+            .collect()
+    }
 }
 
-/// Time stamps of joined records for figures: each record at its own interval, one after
-/// the other from the first's start.
-fn times(j: &Joined) -> Vec<f64> {
-    if !j.several() {
-        return j.record.t.clone();
-    }
-    let mut t = Vec::with_capacity(j.record.len());
-    let mut at = j.record.t.first().copied().unwrap_or(0.0);
-    for &(n, dt) in &j.parts {
-        t.extend((0..n).map(|k| at + k as f64 * dt));
-        at += n as f64 * dt;
-    }
-    t
-}
-
-/// The inputs of the records `parts` (samples, interval) concatenated in `r`.
-fn train_inputs<'a>(parts: &[(usize, f64)], r: &'a Recording) -> Vec<(&'a [f64], f64)> {
-    let mut from = 0;
-    parts
-        .iter()
-        .map(|&(n, dt)| {
-            from += n;
-            (&r.u[from - n..from], dt)
-        })
-        .collect()
+/// A round's candidate the training record supports (ΔBIC beyond the margin) that the
+/// validation record does not confirm, and the model it extends.
+struct Unconfirmed {
+    fitted: Fitted,
+    label: String,
+    delta_bic: f64,
+    parent: String,
 }
 
 /// [`diagnose`] on one or several training and validation records (actuator parameters
@@ -1521,13 +1524,14 @@ pub fn diagnose_with_tests(
         dt,
     );
     d.dv = dv;
+    let inputs = tj.inputs();
     if tj.several() {
-        d.scope = plausible::Scope::of_records(train_inputs(&tj.parts, train), &train.y);
+        d.scope = plausible::Scope::of_records(&inputs, &train.y);
     }
     if vj.several() {
         d.validation_parts = Some(vj.parts.clone());
     }
-    let ctx = Context::from_records(&train_inputs(&tj.parts, train)).with_hold(opts.hold);
+    let ctx = Context::from_records(&inputs).with_hold(opts.hold);
     let (train_noise, train_settled) = (tj.noise, tj.settled);
     let (validate_noise, validate_settled) = (vj.noise, vj.settled);
     let noise = (0.5 * (train_noise * train_noise + validate_noise * validate_noise)).sqrt();
@@ -1644,7 +1648,7 @@ pub fn diagnose_with_tests(
     let base_out = [base.out_t.clone(), base.out_v.clone()];
     let base_fitted = base.fitted.clone();
     let mut current = base;
-    let mut unconfirmed: Option<(Fitted, String, f64, String)> = None;
+    let mut unconfirmed: Option<Unconfirmed> = None;
     let mut current_summary = baseline.clone();
     let mut candidates = Vec::new();
     let mut left_out = Vec::new();
@@ -1764,13 +1768,11 @@ pub fn diagnose_with_tests(
                 .enumerate()
                 .filter(|(_, v)| !v.passed && v.delta_bic < -opts.bic_margin)
                 .min_by(|a, b| a.1.delta_bic.total_cmp(&b.1.delta_bic))
-                .map(|(i, v)| {
-                    (
-                        tried[i].fitted.clone(),
-                        format!("{} [{}]", pool[i].name(), pool[i].form()),
-                        v.delta_bic,
-                        parent.label(),
-                    )
+                .map(|(i, v)| Unconfirmed {
+                    fitted: tried[i].fitted.clone(),
+                    label: format!("{} [{}]", pool[i].name(), pool[i].form()),
+                    delta_bic: v.delta_bic,
+                    parent: parent.label(),
                 });
             let mut record = |p: &Proposal, c: &Evaluated, v: &Verdict, candidates: &mut Vec<_>| {
                 evaluations += c.fitted.evaluations;
@@ -2195,13 +2197,12 @@ pub fn diagnose_with_tests(
     let structured = current_summary.p_value <= 0.05 && current.score > threshold;
     let unexplained = structured && current_summary.validate_rmse > resolution;
     let series = Series {
-        t: [times(&tj), times(&vj)],
+        t: [tj.times(), vj.times()],
         u: [train.u.clone(), validate.u.clone()],
         y: [train.y.clone(), validate.y.clone()],
         baseline: base_out,
         final_model: [current.out_t.clone(), current.out_v.clone()],
         dt: [dt, dv],
-        parts: [tj.parts.clone(), vj.parts.clone()],
         final_label: current_summary.model.clone(),
     };
     let nuisances = {
@@ -2265,10 +2266,16 @@ pub fn diagnose_with_tests(
         .find_map(|t| t.next_experiment.clone());
     diag.next_experiment = next;
     if opts.suggest && diag.next_experiment.is_none() {
-        let last = unconfirmed.filter(|u| u.3 == current.fitted.structure.label());
-        if let Some((f, label, delta, _)) = last {
+        let last = unconfirmed.filter(|u| u.parent == current.fitted.structure.label());
+        if let Some(Unconfirmed {
+            fitted,
+            label,
+            delta_bic: delta,
+            ..
+        }) = last
+        {
             let mut x = suggest::design(
-                &f.single(),
+                &fitted.single(),
                 &current.fitted.single(),
                 [label.clone(), diag.final_model.model.clone()],
                 &d.ut,

@@ -44,19 +44,14 @@ pub const AT_BOUND_SHARE: f64 = 0.01;
 impl Scope {
     /// The scope of a training record: input `u`, output `y`, sampled every `dt`.
     pub fn of(u: &[f64], y: &[f64], dt: f64) -> Scope {
-        let r = super::residual::correlation(u, y);
-        Scope {
-            dt,
-            span_s: u.len().min(y.len()) as f64 * dt,
-            band_hz: excited_band(u, dt),
-            slope_sign: if r == 0.0 { 0.0 } else { r.signum() },
-        }
+        let n = u.len().min(y.len());
+        Self::of_records(&[(&u[..n], dt)], &y[..n])
     }
 
     /// The scope of several training records `(input, interval)` fitted together (their
     /// outputs concatenated in `y`): the first record's interval, the longest record, the
     /// widest excited band, the slope over all of them.
-    pub fn of_records(records: Vec<(&[f64], f64)>, y: &[f64]) -> Scope {
+    pub fn of_records(records: &[(&[f64], f64)], y: &[f64]) -> Scope {
         let u: Vec<f64> = records.iter().flat_map(|r| r.0.iter().copied()).collect();
         let r = super::residual::correlation(&u, y);
         Scope {

@@ -27,19 +27,15 @@ pub fn text(d: &Diagnosis) -> String {
     };
     // `N samples every dt s`, or for several records each one's.
     let sampled = |i: usize| -> String {
-        let parts = &d.series.parts[i];
-        if parts.len() > 1 {
-            let each: Vec<String> = parts
-                .iter()
-                .map(|&(n, dt)| format!("{n} every {} s", step(dt)))
-                .collect();
-            format!("{} records: {}", parts.len(), each.join(", "))
-        } else {
-            format!(
-                "{} samples every {} s",
-                d.samples[i],
-                step(d.sampling_intervals_s[i])
-            )
+        match d.records[i].as_slice() {
+            [(n, dt)] => format!("{n} samples every {} s", step(*dt)),
+            parts => {
+                let each: Vec<String> = parts
+                    .iter()
+                    .map(|&(n, dt)| format!("{n} every {} s", step(dt)))
+                    .collect();
+                format!("{} records: {}", parts.len(), each.join(", "))
+            }
         }
     };
     let mut s = String::new();
@@ -310,7 +306,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
     };
     let fl = s.final_label.clone();
     for (name, i) in [("train", 0), ("validate", 1)] {
-        let parts = &s.parts[i];
+        let parts = &d.records[i];
         // Several records: said in every title, with where each further one starts.
         let set = if parts.len() > 1 {
             let mut from = 0;

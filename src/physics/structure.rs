@@ -852,7 +852,7 @@ impl Structure {
     /// Names of the linear coefficients, in [`LinearFit::coef`] order.
     pub fn linear_names(&self) -> Vec<String> {
         if let Some(r) = &self.records {
-            return r.linear_names();
+            return r.names().to_vec();
         }
         self.own_linear_names()
             .into_iter()
@@ -964,12 +964,18 @@ impl Structure {
 
     /// Coefficients whose name (a further record's without its `@k`) passes `keep`.
     fn coefs_where(&self, keep: impl Fn(&str) -> bool) -> Vec<usize> {
-        self.linear_names()
-            .iter()
-            .enumerate()
-            .filter(|(_, n)| keep(records::base_name(n)))
-            .map(|(i, _)| i)
-            .collect()
+        // Without allocating names: the creep states' bounds ask on every evaluation.
+        let pick = |names: &mut dyn Iterator<Item = &str>| -> Vec<usize> {
+            names
+                .enumerate()
+                .filter(|(_, n)| keep(records::base_name(n)))
+                .map(|(i, _)| i)
+                .collect()
+        };
+        match &self.records {
+            Some(r) => pick(&mut r.names().iter().map(String::as_str)),
+            None => pick(&mut self.own_linear_names().into_iter()),
+        }
     }
 
     /// Parameters counted by information criteria: shape plus linear.

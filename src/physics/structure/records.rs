@@ -45,16 +45,27 @@ pub(super) fn base_name(name: &str) -> &str {
     name.split('@').next().unwrap_or(name)
 }
 
-/// The records of a jointly fitted structure.
+/// The records of a jointly fitted structure, with the layout of the joint vectors worked
+/// out once (the columns are assembled on every evaluation of a fit).
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct Records {
     /// Samples and sampling interval of each record, in order (at least two).
     parts: Vec<(usize, f64)>,
+    /// Samples in all.
+    total: usize,
     /// Each record's one-record structure, the first at the first record's interval.
     single: Vec<Structure>,
+    /// Where the one-record structures hold their initial state and timing.
+    slots: (usize, usize),
     /// Per further record, where its initial state and (at another interval) its timing sit
     /// in the joint shape vector.
-    own: Vec<(usize, Option<usize>)>,
+    states: Vec<(usize, Option<usize>)>,
+    /// The one-record structure's coefficients that belong to a record.
+    own: Vec<usize>,
+    /// Every coefficient's name, the further records' own with `@k`.
+    names: Vec<String>,
+    /// Positions of the shape-independent coefficients (each record's offset and drift).
+    fixed: Vec<usize>,
 }
 
 impl Structure {
@@ -72,36 +83,52 @@ impl Structure {
             return base;
         }
         let single: Vec<Structure> = parts.iter().map(|&(_, dt)| base.at_interval(dt)).collect();
+        let slot = |name: &str| {
+            base.specs
+                .iter()
+                .position(|s| s.name == name)
+                .expect("every structure has an initial state and a timing")
+        };
+        let slots = (slot("g0_frac"), slot("timing_samples"));
         let mut specs = base.specs.clone();
-        let spec_of = |name: &str| base.specs.iter().find(|s| s.name == name).cloned();
-        let mut own = Vec::new();
+        let mut states = Vec::new();
         for (k, &(_, dt)) in parts.iter().enumerate().skip(1) {
-            let g0 = spec_of("g0_frac").map(|s| {
+            let mut add = |from: usize, name: &'static str| {
                 specs.push(ParamSpec {
-                    name: G0[k - 1],
-                    ..s
+                    name,
+                    ..base.specs[from].clone()
                 });
                 specs.len() - 1
-            });
-            let timing = (!same_interval(dt, parts[0].1))
-                .then(|| spec_of("timing_samples"))
-                .flatten()
-                .map(|s| {
-                    specs.push(ParamSpec {
-                        name: TIMING[k - 1],
-                        ..s
-                    });
-                    specs.len() - 1
-                });
-            own.push((g0.expect("every structure has an initial state"), timing));
+            };
+            let g0 = add(slots.0, G0[k - 1]);
+            let timing = (!same_interval(dt, parts[0].1)).then(|| add(slots.1, TIMING[k - 1]));
+            states.push((g0, timing));
         }
+        let one_names = base.own_linear_names();
+        let own = base.record_coefs();
+        let mut names: Vec<String> = one_names.iter().map(|n| n.to_string()).collect();
+        for r in 2..=parts.len() {
+            names.extend(own.iter().map(|&j| format!("{}@{r}", one_names[j])));
+        }
+        let mut records = Records {
+            parts: parts.to_vec(),
+            total: parts.iter().map(|p| p.0).sum(),
+            single,
+            slots,
+            states,
+            own,
+            names,
+            fixed: Vec::new(),
+        };
+        let one_fixed = base.fixed_indices();
+        records.fixed = (0..parts.len())
+            .flat_map(|r| one_fixed.iter().map(move |&j| (r, j)))
+            .map(|(r, j)| records.coef_at(r, j))
+            .collect();
+        records.fixed.sort_unstable();
         Structure {
             specs,
-            records: Some(Arc::new(Records {
-                parts: parts.to_vec(),
-                single,
-                own,
-            })),
+            records: Some(Arc::new(records)),
             ..base
         }
     }
@@ -133,57 +160,37 @@ impl Records {
         &self.single[0]
     }
 
-    /// Shape parameters of the one-record structure (the first record's).
-    fn base_len(&self) -> usize {
-        self.base().specs.len()
-    }
-
-    /// The linear coefficients of one record.
-    fn own_coefs(&self) -> Vec<usize> {
-        self.base().record_coefs()
-    }
-
     /// Where record `r`'s coefficient `j` (of the one-record structure) sits in the joint
     /// coefficient vector: the actuator's and the first record's at `j`, the further
     /// records' own after all of the one-record ones, record by record.
-    fn coef_at(&self, r: usize, j: usize, own: &[usize]) -> usize {
-        match own.iter().position(|&k| k == j) {
-            Some(p) if r > 0 => self.base().own_linear_names().len() + (r - 1) * own.len() + p,
+    fn coef_at(&self, r: usize, j: usize) -> usize {
+        match self.own.iter().position(|&k| k == j) {
+            Some(p) if r > 0 => self.one_coefs() + (r - 1) * self.own.len() + p,
             _ => j,
         }
     }
 
-    pub(super) fn linear_names(&self) -> Vec<String> {
-        let names = self.base().own_linear_names();
-        let own = self.own_coefs();
-        let mut v: Vec<String> = names.iter().map(|n| n.to_string()).collect();
-        for r in 1..self.parts.len() {
-            v.extend(own.iter().map(|&j| format!("{}@{}", names[j], r + 1)));
-        }
-        v
+    /// Coefficients of the one-record structure (the first ones of the joint vector).
+    fn one_coefs(&self) -> usize {
+        self.names.len() - (self.parts.len() - 1) * self.own.len()
+    }
+
+    pub(super) fn names(&self) -> &[String] {
+        &self.names
     }
 
     /// Record `r`'s shape vector: the shared parameters carried to its interval, its own
     /// initial state and timing.
     fn theta_of(&self, theta: &[f64], r: usize) -> Vec<f64> {
-        let nb = self.base_len();
-        let shared = &theta[..nb.min(theta.len())];
+        let shared = &theta[..self.base().specs.len().min(theta.len())];
         if r == 0 {
             return shared.to_vec();
         }
-        let st = &self.single[r];
-        let mut th = self.base().carry(shared, st);
-        let (g0, timing) = self.own[r - 1];
-        let set = |th: &mut Vec<f64>, name: &str, at: usize| {
-            if let (Some(i), Some(&v)) =
-                (st.specs.iter().position(|s| s.name == name), theta.get(at))
-            {
-                th[i] = v;
-            }
-        };
-        set(&mut th, "g0_frac", g0);
+        let mut th = self.base().carry(shared, &self.single[r]);
+        let (g0, timing) = self.states[r - 1];
+        th[self.slots.0] = theta[g0];
         if let Some(t) = timing {
-            set(&mut th, "timing_samples", t);
+            th[self.slots.1] = theta[t];
         }
         th
     }
@@ -191,18 +198,16 @@ impl Records {
     /// Every coefficient's column over the concatenated records; an input that is not
     /// the records' (another length) is simulated by the first record's model.
     pub(super) fn columns(&self, theta: &[f64], u: &[f64]) -> (Vec<Vec<f64>>, Status) {
-        let total: usize = self.parts.iter().map(|p| p.0).sum();
-        if u.len() != total {
+        if u.len() != self.total {
             return self.base().columns(&self.theta_of(theta, 0), u);
         }
-        let own = self.own_coefs();
-        let mut cols = vec![vec![0.0; total]; self.linear_names().len()];
+        let mut cols = vec![vec![0.0; self.total]; self.names.len()];
         let mut status = Status::Ok;
         let mut from = 0;
         for (r, &(len, _)) in self.parts.iter().enumerate() {
             let (c, s) = self.single[r].columns(&self.theta_of(theta, r), &u[from..from + len]);
             for (j, col) in c.into_iter().enumerate() {
-                cols[self.coef_at(r, j, &own)][from..from + len].copy_from_slice(&col);
+                cols[self.coef_at(r, j)][from..from + len].copy_from_slice(&col);
             }
             if let (Status::Ok, Status::Unstable { at }) = (status, s) {
                 status = Status::Unstable { at: from + at };
@@ -214,32 +219,19 @@ impl Records {
 
     /// Positions of the shape-independent columns (each record's offset and drift).
     pub(super) fn fixed_indices(&self) -> Vec<usize> {
-        let own = self.own_coefs();
-        let mut v: Vec<usize> = (0..self.parts.len())
-            .flat_map(|r| {
-                let own = &own;
-                self.base()
-                    .fixed_indices()
-                    .into_iter()
-                    .map(move |j| self.coef_at(r, j, own))
-            })
-            .collect();
-        v.sort_unstable();
-        v
+        self.fixed.clone()
     }
 
     /// The columns at [`Self::fixed_indices`], in that order.
     pub(super) fn fixed_columns(&self) -> Vec<Vec<f64>> {
-        let total: usize = self.parts.iter().map(|p| p.0).sum();
-        let own = self.own_coefs();
         let fixed_at = self.base().fixed_indices();
         let mut placed: Vec<(usize, Vec<f64>)> = Vec::new();
         let mut from = 0;
         for (r, &(len, _)) in self.parts.iter().enumerate() {
             for (&j, col) in fixed_at.iter().zip(self.single[r].fixed_columns(len)) {
-                let mut full = vec![0.0; total];
+                let mut full = vec![0.0; self.total];
                 full[from..from + len].copy_from_slice(&col);
-                placed.push((self.coef_at(r, j, &own), full));
+                placed.push((self.coef_at(r, j), full));
             }
             from += len;
         }
@@ -249,16 +241,14 @@ impl Records {
 
     /// The shape-dependent columns: [`Self::columns`] without the fixed ones.
     pub(super) fn varying_columns(&self, theta: &[f64], u: &[f64]) -> (Vec<Vec<f64>>, Status) {
-        let total: usize = self.parts.iter().map(|p| p.0).sum();
-        if u.len() != total {
+        if u.len() != self.total {
             return self.base().varying_columns(&self.theta_of(theta, 0), u);
         }
-        let fixed = self.fixed_indices();
         let (cols, status) = self.columns(theta, u);
         let varying = cols
             .into_iter()
             .enumerate()
-            .filter(|(i, _)| !fixed.contains(i))
+            .filter(|(i, _)| self.fixed.binary_search(i).is_err())
             .map(|(_, c)| c)
             .collect();
         (varying, status)
@@ -266,29 +256,28 @@ impl Records {
 
     /// Every record's creep states bounded as the first record's ([`Structure::state_bounds`]).
     pub(super) fn state_bounds(&self, theta: &[f64], range: f64) -> Vec<(usize, f64)> {
-        let own = self.own_coefs();
         let first = self.base().state_bounds(&self.theta_of(theta, 0), range);
         (0..self.parts.len())
             .flat_map(|r| first.iter().map(move |&(j, b)| (r, j, b)))
-            .map(|(r, j, b)| (self.coef_at(r, j, &own), b))
+            .map(|(r, j, b)| (self.coef_at(r, j), b))
             .collect()
     }
 
     /// The first record's parameters, then each further record's own by name (`g0_frac@2`,
     /// `d0@2`, ...).
     pub(super) fn named_params(&self, theta: &[f64], coef: &[f64]) -> Vec<(String, f64)> {
-        let nl = self.base().own_linear_names().len();
+        let nl = self.one_coefs();
         let mut v = self
             .base()
             .named_params(&self.theta_of(theta, 0), &coef[..nl.min(coef.len())]);
-        for (k, &(g0, timing)) in self.own.iter().enumerate() {
+        for (k, &(g0, timing)) in self.states.iter().enumerate() {
             v.push((G0[k].to_string(), theta[g0]));
             if let Some(t) = timing {
                 v.push((TIMING[k].to_string(), theta[t]));
             }
         }
-        for (name, &c) in self.linear_names().into_iter().zip(coef).skip(nl) {
-            v.push((name, c));
+        for (name, &c) in self.names.iter().zip(coef).skip(nl) {
+            v.push((name.clone(), c));
         }
         v
     }
