@@ -320,6 +320,12 @@ const BOUC_WEN_PARAMS: &[Spec] = recording_params![
         help: "also fit the offset d0 (the seed fitted d_e, alpha, beta, gamma, n)",
     },
     Spec {
+        name: "h0",
+        kind: Kind::Bool,
+        default: D::Bool(true),
+        help: "with several training records, fit each one's initial hysteretic state (h0, h0@2, ...: a fraction in [-1, 1] of the saturation level (alpha/(beta+gamma))^(1/n)); false: every record from rest. One record always starts from rest",
+    },
+    Spec {
         name: "normalize",
         kind: Kind::Bool,
         default: D::Bool(true),
@@ -368,6 +374,7 @@ fn build_bouc_wen(p: &Params) -> Result<Arc<dyn Objective>, Error> {
         p.float("upper"),
     )
     .map_err(|e| p.error("lower", e))?
+    .with_initial_states(p.bool("h0"))
     .with_scheme(match p.str("scheme") {
         "accurate" => BoucWenScheme::Accurate,
         "explicit" => BoucWenScheme::Explicit,
