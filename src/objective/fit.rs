@@ -509,6 +509,16 @@ impl BoucWenFit {
         self
     }
 
+    /// Sub-steps of the fast scheme on validation records (the most any training record
+    /// uses; 0 for the other schemes).
+    #[cfg(test)]
+    fn scheme_substeps(&self) -> usize {
+        match self.scheme() {
+            BoucWenScheme::Fast { substeps } => substeps,
+            _ => 0,
+        }
+    }
+
     /// Whether every training record gets an initial state of its own.
     pub fn fits_initial_states(&self) -> bool {
         self.with_h0
@@ -984,6 +994,134 @@ mod tests {
         // The from-rest fit's second record is visibly off at its start.
         let train2 = |o: &dyn Objective, x: &[f64]| metric(o, x, "train2 RMSE");
         assert!(train2(rest_obj.as_ref(), &rest_best) > 10.0 * train2(obj.as_ref(), &best));
+    }
+
+    /// A validation record with an offset and a mid-loop start of its own, beside two
+    /// training records: at the actuator's true parameters its refitted offset and initial
+    /// state are the truth's and its RMSE is the noise's, where the seed's protocol (the
+    /// first training record's offset, from rest) is far off.
+    #[test]
+    fn validation_records_get_their_offset_and_initial_state_refitted() {
+        let (a, _) = bw_record("a", 1.0, 0, 750, 0.02, 0.0, 1);
+        let (b, b0) = bw_record("b", 0.7, 1071, 900, 0.07, 0.0, 2);
+        let noise = 0.004; // uniform: sigma = noise / sqrt(3)
+        let sigma = noise / 3f64.sqrt();
+        let (v, v0) = bw_record("v", 0.9, 1300, 1000, -0.03, noise, 3);
+        let sat = TRUTH.saturation().unwrap();
+        assert!(v0.abs() > 0.1 * sat, "mid-loop: {v0}");
+        let fit = BoucWenFit::new(
+            &[a.clone(), b],
+            &[("v".into(), v.clone())],
+            true,
+            false,
+            0.0,
+            1.5,
+        )
+        .unwrap();
+        assert_eq!(fit.dim(), 9);
+        let mut x: Vec<f64> = TRUTH_X.to_vec();
+        x.extend([0.02, 0.07, 0.0, b0 / sat]);
+        let rmse = metric(&fit, &x, "v RMSE");
+        let d0 = named(&fit, &x, "validate v d0 []");
+        let h0 = named(&fit, &x, "validate v h0 []");
+        // The seed's protocol: from rest with the first record's offset.
+        let old = {
+            let mut out = vec![0.0; v.len()];
+            let p = BoucWenParams { d0: 0.02, ..TRUTH };
+            bouc_wen_fast::simulate(&p, &v.u, fit.scheme_substeps(), &mut out);
+            errors(&v.y, &out, 0, 1.0).1
+        };
+        eprintln!(
+            "validation RMSE {rmse:.5} (noise sigma {sigma:.5}; seed's protocol {old:.4}); \
+             d0 {d0:.5} vs -0.03, h0 {h0:.5} vs {v0:.5}"
+        );
+        assert!(
+            rmse < 1.05 * sigma && rmse > 0.95 * sigma,
+            "{rmse} vs {sigma}"
+        );
+        assert!((d0 + 0.03).abs() < 5e-4, "d0 {d0}");
+        assert!((h0 - v0).abs() < 0.01 * sat, "h0 {h0} vs {v0}");
+        assert!(old > 10.0 * rmse, "{old}");
+        // Training records keep their own: the first from (almost) rest, the second mid-loop.
+        assert!((named(&fit, &x, "h0@2 []") - b0).abs() < 1e-12);
+        // One training and two validation records: refitted too (the same record twice).
+        let two = BoucWenFit::new(
+            std::slice::from_ref(&a),
+            &[("v".into(), v.clone()), ("w".into(), v)],
+            true,
+            false,
+            0.0,
+            1.5,
+        )
+        .unwrap();
+        assert_eq!(two.dim(), 6);
+        let x1: Vec<f64> = TRUTH_X.iter().copied().chain([0.02]).collect();
+        assert_eq!(named(&two, &x1, "validate w h0 []"), h0);
+        assert_eq!(metric(&two, &x1, "w RMSE"), rmse);
+    }
+
+    /// One training and one validation record: the seed's protocol, bit for bit (training
+    /// from rest; validation from rest with the training record's offset), on every scheme.
+    #[test]
+    fn one_training_and_one_validation_record_keep_the_seed_protocol() {
+        let (a, _) = bw_record("a", 1.0, 0, 750, 0.02, 0.001, 1);
+        let (v, _) = bw_record("v", 0.9, 1300, 1000, -0.03, 0.001, 3);
+        let x: Vec<f64> = vec![0.79, 1.02, 0.58, 0.33, 0.97, 0.015];
+        let p = BoucWenParams {
+            d_e: x[0],
+            alpha: x[1],
+            beta: x[2],
+            gamma: x[3],
+            n: x[4],
+            d0: x[5],
+        };
+        for scheme in [
+            BoucWenScheme::Fast { substeps: 0 },
+            BoucWenScheme::Accurate,
+            BoucWenScheme::Explicit,
+        ] {
+            let fit = BoucWenFit::new(
+                std::slice::from_ref(&a),
+                &[("v".into(), v.clone())],
+                true,
+                false,
+                0.0,
+                1.5,
+            )
+            .unwrap()
+            .with_scheme(scheme);
+            assert!(!fit.fits_initial_states() && !fit.refits_validation());
+            assert_eq!(fit.dim(), 6);
+            let names: Vec<String> = fit.named_params(&x).into_iter().map(|n| n.0).collect();
+            assert!(names.iter().all(|n| !n.contains("h0")), "{names:?}");
+            // The old way: free runs from rest.
+            let run = |u: &[f64], out: &mut [f64]| match scheme {
+                BoucWenScheme::Fast { .. } => {
+                    bouc_wen_fast::simulate(&p, u, fit.scheme_substeps(), out)
+                }
+                BoucWenScheme::Accurate => bouc_wen::simulate(&p, u, out),
+                BoucWenScheme::Explicit => bouc_wen_fast::simulate_explicit(&p, u, out),
+            };
+            let (mut ta, mut tv) = (vec![0.0; a.len()], vec![0.0; v.len()]);
+            assert_eq!(run(&a.u, &mut ta), SimStatus::Ok);
+            assert_eq!(run(&v.u, &mut tv), SimStatus::Ok);
+            let (max, rms) = errors(&v.y, &tv, 0, 1.0);
+            assert_eq!(metric(&fit, &x, "v RMSE").to_bits(), rms.to_bits());
+            assert_eq!(metric(&fit, &x, "v max error").to_bits(), max.to_bits());
+            let (_, train) = errors(&a.y, &ta, 0, 1.0);
+            assert_eq!(metric(&fit, &x, "train RMSE").to_bits(), train.to_bits());
+            let batched = |input: FastInput| {
+                let mut c = [0.0];
+                bouc_wen_fast::costs(&[p], &input, &mut c);
+                c[0]
+            };
+            let cost = match scheme {
+                BoucWenScheme::Accurate => bouc_wen::cost(&p, &a.u, &a.y),
+                BoucWenScheme::Explicit => batched(FastInput::explicit(&a.u, &a.y)),
+                BoucWenScheme::Fast { .. } => batched(FastInput::new(&a.u, &a.y, 0)),
+            };
+            assert_eq!(fit.evaluate(&x).to_bits(), cost.to_bits());
+        }
     }
 
     #[test]
