@@ -974,8 +974,10 @@ mod tests {
         let h0 = named(obj.as_ref(), &best, "h0@2 []");
         eprintln!(
             "cost at truth {at_truth:.2e}, fitted {cost:.2e}, from rest {rest_cost:.2e} \
-             (ratio {:.0}); h0@2 {h0:.5} vs {b0:.5}; h0 {:.2e}; x {best:?}; from rest {rest_best:?}",
+             (ratio {:.0}); h0@2 {h0:.5} vs {b0:.5} ({:.1e} of sat); h0 {:.2e}; x {best:?}; \
+             from rest {rest_best:?}",
             rest_cost / cost,
+            (h0 - b0).abs() / sat,
             named(obj.as_ref(), &best, "h0 []"),
         );
         assert!(at_truth < 1e-8, "{at_truth:e}");
