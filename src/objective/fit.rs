@@ -427,6 +427,9 @@ pub struct BoucWenFit {
     with_d0: bool,
     /// Each training record's initial state is fitted (several training records).
     with_h0: bool,
+    /// Validation records' nuisances refitted: always, never, or (None) with more than one
+    /// training or validation record.
+    refit: Option<bool>,
     data: Datasets,
     bounds: Bounds,
     scheme: BoucWenScheme,
@@ -485,6 +488,7 @@ impl BoucWenFit {
         Ok(BoucWenFit {
             with_d0,
             with_h0: false,
+            refit: None,
             data,
             bounds,
             scheme: BoucWenScheme::Fast { substeps: 0 },
@@ -524,10 +528,19 @@ impl BoucWenFit {
         self.with_h0
     }
 
-    /// Whether validation records get their offset and initial state refitted (more than
-    /// one training or validation record).
-    fn refits_validation(&self) -> bool {
-        self.data.recordings.len() - self.fast.len() > 1 || self.fast.len() > 1
+    /// Whether validation records get their offset and initial state refitted on them:
+    /// `Some(true)` always, `Some(false)` never (the seed's protocol: from rest with the
+    /// first training record's offset), `None` (the default) with more than one training or
+    /// more than one validation record.
+    pub fn with_validation_refit(mut self, refit: Option<bool>) -> Self {
+        self.refit = refit;
+        self
+    }
+
+    /// Whether validation records get their offset and initial state refitted.
+    pub fn refits_validation(&self) -> bool {
+        let held = self.data.recordings.len() - self.fast.len();
+        held > 0 && self.refit.unwrap_or(held > 1 || self.fast.len() > 1)
     }
 
     /// Position of training record `r`'s initial-state fraction in a parameter vector.
@@ -1123,6 +1136,23 @@ mod tests {
                 BoucWenScheme::Fast { .. } => batched(FastInput::new(&a.u, &a.y, 0)),
             };
             assert_eq!(fit.evaluate(&x).to_bits(), cost.to_bits());
+            // `refit_validation = "never"` keeps this protocol with several validation
+            // records (a benchmark's official test); "always" refits a single one.
+            let make = |vs: &[(String, Recording)], refit| {
+                BoucWenFit::new(std::slice::from_ref(&a), vs, true, false, 0.0, 1.5)
+                    .unwrap()
+                    .with_scheme(scheme)
+                    .with_validation_refit(refit)
+            };
+            let twice = [("v".into(), v.clone()), ("w".into(), v.clone())];
+            let never = make(&twice, Some(false));
+            assert!(!never.refits_validation());
+            assert_eq!(metric(&never, &x, "w RMSE").to_bits(), rms.to_bits());
+            assert!(make(&twice, None).refits_validation());
+            let always = make(&twice[..1], Some(true));
+            assert!(always.refits_validation());
+            assert!(metric(&always, &x, "v RMSE") < rms);
+            assert!(make(&[], Some(true)).named_params(&x).len() == 6);
         }
     }
 
