@@ -155,9 +155,10 @@ pub struct FitArgs {
     /// hysteretic state, `--param h0=false` starts them from rest).
     #[arg(long, required = true)]
     pub recording: Vec<String>,
-    /// Held-out recording (same forms), never fitted. Repeatable. With several records
-    /// (training or validation), bouc-wen refits each validation record's own offset (with
-    /// d0) and initial state on it, the actuator's parameters held fixed.
+    /// Held-out recording (same forms); the model is never fitted to it. Repeatable. With
+    /// several records (training or validation), bouc-wen refits each validation record's
+    /// own offset (with d0) and initial state on it, the actuator's parameters held fixed
+    /// (`--param refit_validation=never` keeps the seed's protocol).
     #[arg(long)]
     pub validate: Vec<String>,
     /// Model to fit (a fitting objective of `optbench list`, e.g. bouc-wen or rbf).

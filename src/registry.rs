@@ -103,7 +103,7 @@ macro_rules! recording_params {
                 name: "validate",
                 kind: Kind::Text,
                 default: D::Derived("none"),
-                help: "held-out recordings, same forms, separated by \" | \" (metrics only, never fitted)",
+                help: "held-out recordings, same forms, separated by \" | \" (metrics only; the model is never fitted to them)",
             },
             Spec {
                 name: "first",
