@@ -52,7 +52,7 @@ fn bouc_wen_costs(c: &mut Criterion) {
         })
     });
     g.bench_function("fast-batched-portable", |b| {
-        b.iter(|| bouc_wen_fast::costs_portable(black_box(&pop), &input, &mut out))
+        b.iter(|| bouc_wen_fast::costs_portable(black_box(&pop), &[], &input, &mut out))
     });
     g.bench_function("fast-batched", |b| {
         b.iter(|| bouc_wen_fast::costs(black_box(&pop), &input, &mut out))
@@ -75,7 +75,7 @@ fn bouc_wen_costs(c: &mut Criterion) {
         })
     });
     g.bench_function("explicit-batched-portable", |b| {
-        b.iter(|| bouc_wen_fast::costs_portable(black_box(&pop), &explicit, &mut out))
+        b.iter(|| bouc_wen_fast::costs_portable(black_box(&pop), &[], &explicit, &mut out))
     });
     g.bench_function("explicit-batched", |b| {
         b.iter(|| bouc_wen_fast::costs(black_box(&pop), &explicit, &mut out))

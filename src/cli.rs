@@ -151,10 +151,14 @@ pub struct ReportArgs {
 pub struct FitArgs {
     /// Training recording: a CSV file, twin:SIGNAL or eq318:SIGNAL (see `optbench list`).
     /// Repeatable: several records fitted together (parameters shared, costs summed; with
-    /// `--param d0=true` an offset per record).
+    /// `--param d0=true` an offset per record; bouc-wen also fits each record's initial
+    /// hysteretic state, `--param h0=false` starts them from rest).
     #[arg(long, required = true)]
     pub recording: Vec<String>,
-    /// Held-out recording (same forms), never fitted. Repeatable.
+    /// Held-out recording (same forms); the model is never fitted to it. Repeatable. With
+    /// several records (training or validation), bouc-wen refits each validation record's
+    /// own offset (with d0) and initial state on it, the actuator's parameters held fixed
+    /// (`--param refit_validation=never` keeps the seed's protocol).
     #[arg(long)]
     pub validate: Vec<String>,
     /// Model to fit (a fitting objective of `optbench list`, e.g. bouc-wen or rbf).

@@ -214,7 +214,7 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
     for m in &metrics {
         text += &format!("  {:<34} {}\n", m.name, sig(m.value, 4));
     }
-    if named.len() <= 12 {
+    if named.len() <= 16 {
         text += "\nparameters:\n";
         for (k, v) in &named {
             text += &format!("  {k:<10} {}\n", sig(*v, 6));

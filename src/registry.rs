@@ -103,7 +103,7 @@ macro_rules! recording_params {
                 name: "validate",
                 kind: Kind::Text,
                 default: D::Derived("none"),
-                help: "held-out recordings, same forms, separated by \" | \" (metrics only, never fitted)",
+                help: "held-out recordings, same forms, separated by \" | \" (metrics only; the model is never fitted to them)",
             },
             Spec {
                 name: "first",
@@ -320,6 +320,18 @@ const BOUC_WEN_PARAMS: &[Spec] = recording_params![
         help: "also fit the offset d0 (the seed fitted d_e, alpha, beta, gamma, n)",
     },
     Spec {
+        name: "h0",
+        kind: Kind::Bool,
+        default: D::Bool(true),
+        help: "with several training records, fit each one's initial hysteretic state (h0, h0@2, ...: a fraction in [-1, 1] of the saturation level (alpha/(beta+gamma))^(1/n)); false: every record from rest. One record always starts from rest",
+    },
+    Spec {
+        name: "refit_validation",
+        kind: Kind::Choice(&["auto", "always", "never"]),
+        default: D::Str("auto"),
+        help: "refit each validation record's own offset (with d0) and initial state on it, the actuator's parameters held fixed: auto = with more than one training or validation record; never = the seed's protocol (from rest with the first training record's d0), as a benchmark's official free-run test",
+    },
+    Spec {
         name: "normalize",
         kind: Kind::Bool,
         default: D::Bool(true),
@@ -368,6 +380,12 @@ fn build_bouc_wen(p: &Params) -> Result<Arc<dyn Objective>, Error> {
         p.float("upper"),
     )
     .map_err(|e| p.error("lower", e))?
+    .with_initial_states(p.bool("h0"))
+    .with_validation_refit(match p.str("refit_validation") {
+        "always" => Some(true),
+        "never" => Some(false),
+        _ => None,
+    })
     .with_scheme(match p.str("scheme") {
         "accurate" => BoucWenScheme::Accurate,
         "explicit" => BoucWenScheme::Explicit,

@@ -449,7 +449,8 @@ fn fit_and_suites_read_lab_files_and_resample_on_request() {
 /// Several training records at several sampling intervals, each with an offset of its own:
 /// the Bouc-Wen fit's cost is the sum of each record's (the seed's model is
 /// rate-independent, so the intervals do not matter), one offset per record is fitted, and
-/// a short PSO run returns the offsets' difference; the RBF NARX network, a discrete-time
+/// a short PSO run (fitting both records from rest, as they start) returns the offsets'
+/// difference; the RBF NARX network, a discrete-time
 /// model, refuses records at another interval and sums its costs over records at one.
 #[test]
 fn several_training_records_fit_together() {
@@ -473,12 +474,18 @@ fn several_training_records_fit_together() {
     let slow = "sine:freq=0.5,amp=2.3,offset=2.35,phase=-1.5707963267948966";
     let b = sim(slow, 2.0, 2.5e-3, 0.07);
     let both = BoucWenFit::new(&[a.clone(), b.clone()], &[], true, false, 0.0, 1.5).unwrap();
-    assert_eq!(both.dim(), 7);
+    // Five shared parameters, an offset and an initial-state fraction per record.
+    assert_eq!(both.dim(), 9);
     let truth = TwinConfig::parse_overrides(overrides)
         .unwrap()
         .command_scale_bouc_wen();
     let shape = [truth.d_e, truth.alpha, truth.beta, truth.gamma, truth.n];
-    let x: Vec<f64> = shape.iter().copied().chain([0.02, 0.07]).collect();
+    // Both from rest (state fraction 0): the exact sum of the records fitted alone.
+    let x: Vec<f64> = shape
+        .iter()
+        .copied()
+        .chain([0.02, 0.07, 0.0, 0.0])
+        .collect();
     let alone = |r: &Recording, d0: f64| {
         let f = BoucWenFit::new(std::slice::from_ref(r), &[], true, false, 0.0, 1.5).unwrap();
         let p: Vec<f64> = shape.iter().copied().chain([d0]).collect();
@@ -496,7 +503,9 @@ fn several_training_records_fit_together() {
         let rmse = metric(&both, &x, m);
         assert!(rmse < 1.5e-3, "{m} {rmse}");
     }
-    let obj: Arc<dyn Objective> = Arc::new(both);
+    // Both records start from rest: the search fits them so (`h0=false`), 7 dimensions.
+    let obj: Arc<dyn Objective> = Arc::new(both.with_initial_states(false));
+    assert_eq!(obj.dim(), 7);
     let pso = PsoConfig {
         swarm: 40,
         ..PsoConfig::default()
@@ -541,7 +550,8 @@ fn several_training_records_fit_together() {
     assert!(j.is_finite() && j > 0.0 && g.iter().any(|v| *v != 0.0));
 }
 
-/// `optbench fit` takes --recording and --validate more than once.
+/// `optbench fit` takes --recording and --validate more than once, and lists the training
+/// records' initial states and the validation records' refitted offsets and states.
 #[test]
 fn fit_command_takes_several_records() {
     let dir = tempfile::tempdir().unwrap();
@@ -600,5 +610,16 @@ fn fit_command_takes_several_records() {
         assert!(dir.path().join("f").join(f).exists(), "{f}");
     }
     let params = j["params"].to_string();
-    assert!(params.contains("d0@2"), "{params}");
+    // An offset and an initial state per training record, and each validation record's
+    // own, refitted.
+    for want in [
+        "d0@2 ",
+        "h0 ",
+        "h0@2 ",
+        "validate c d0 ",
+        "validate c h0 ",
+        "validate a h0 ",
+    ] {
+        assert!(params.contains(&format!("\"{want}")), "{want} in {params}");
+    }
 }

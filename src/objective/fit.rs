@@ -8,6 +8,7 @@
 
 use super::{Bounds, Metric, Objective, Presentation, PresentationKind};
 use crate::error::{Error, Result};
+use crate::physics::bouc_wen::{self, BoucWenParams, SimStatus};
 use crate::physics::bouc_wen_fast::{self, FastInput};
 use crate::physics::rbf::{self, Mode, Narx, RbfNet, Regressors};
 use crate::physics::rbf_fast::RbfBatch;
@@ -410,8 +411,25 @@ impl Objective for RbfFit {
 /// in normalised units, cost from a free-run simulation of each record (eq. 3.8-3.9),
 /// summed. The model is rate-independent, so records at any sampling intervals fit
 /// together. Unstable parameters cost a large finite penalty.
+///
+/// With several training records each also gets an initial hysteretic state of its own (a
+/// record taken later in a session starts mid-loop): the search variable is the fraction
+/// `q` in [-1, 1] of the loop's saturation level `(alpha/(beta+gamma))^(1/n)`, the range a
+/// run from rest can reach, so `h0 = q · saturation` (0 where the parameters have no
+/// saturation level). With one training record every run starts from rest, as the seed's.
+///
+/// Validation records: with one training and one validation record the validation record
+/// is predicted from rest with the first training record's d0 (the seed's protocol). With
+/// more records, each validation record's own nuisances are refitted on it with the
+/// actuator's parameters held fixed: its offset d0 (when d0 is fitted) in closed form (the
+/// mean residual) and its initial state by a bounded 1-D search over `q`.
 pub struct BoucWenFit {
     with_d0: bool,
+    /// Each training record's initial state is fitted (several training records).
+    with_h0: bool,
+    /// Validation records' nuisances refitted: always, never, or (None) with more than one
+    /// training or validation record.
+    refit: Option<bool>,
     data: Datasets,
     bounds: Bounds,
     scheme: BoucWenScheme,
@@ -434,8 +452,19 @@ pub enum BoucWenScheme {
 }
 
 /// Names of the Bouc-Wen parameters in vector order (one `d0` per training record follows
-/// `n` when fitted).
+/// `n` when fitted, then, with several training records, one initial-state fraction each).
 pub const BOUC_WEN_PARAMS: [&str; 6] = ["d_e", "alpha", "beta", "gamma", "n", "d0"];
+
+/// Initial hysteretic state `q · saturation` of parameters `p` (`q` clamped to [-1, 1]; 0
+/// where `p` has no saturation level).
+pub fn initial_state(p: &BoucWenParams, q: f64) -> f64 {
+    p.saturation().map_or(0.0, |s| q.clamp(-1.0, 1.0) * s)
+}
+
+/// Grid points of the validation records' initial-state search over [-1, 1].
+const STATE_GRID: usize = 41;
+/// Golden-section iterations after the grid (the bracket shrinks by 0.618 each).
+const STATE_GOLDEN: usize = 40;
 
 impl BoucWenFit {
     /// The fit on `train` with every parameter in `[lower, upper]` (the seed: [0, 1.5]),
@@ -458,11 +487,66 @@ impl BoucWenFit {
             .collect();
         Ok(BoucWenFit {
             with_d0,
+            with_h0: false,
+            refit: None,
             data,
             bounds,
             scheme: BoucWenScheme::Fast { substeps: 0 },
             fast,
-        })
+        }
+        .with_initial_states(true))
+    }
+
+    /// With several training records, fit each one's initial state (`on`, the default) or
+    /// start every record from rest. One training record always starts from rest.
+    pub fn with_initial_states(mut self, on: bool) -> Self {
+        let keep = 5 + if self.with_d0 { self.fast.len() } else { 0 };
+        self.with_h0 = on && self.fast.len() > 1;
+        let states = if self.with_h0 { self.fast.len() } else { 0 };
+        let (mut lower, mut upper) = (
+            self.bounds.lower()[..keep].to_vec(),
+            self.bounds.upper()[..keep].to_vec(),
+        );
+        lower.extend(std::iter::repeat_n(-1.0, states));
+        upper.extend(std::iter::repeat_n(1.0, states));
+        self.bounds = Bounds::new(lower, upper).expect("valid bounds stay valid");
+        self
+    }
+
+    /// Sub-steps of the fast scheme on validation records (the most any training record
+    /// uses; 0 for the other schemes).
+    #[cfg(test)]
+    fn scheme_substeps(&self) -> usize {
+        match self.scheme() {
+            BoucWenScheme::Fast { substeps } => substeps,
+            _ => 0,
+        }
+    }
+
+    /// Whether every training record gets an initial state of its own.
+    pub fn fits_initial_states(&self) -> bool {
+        self.with_h0
+    }
+
+    /// Whether validation records get their offset and initial state refitted on them:
+    /// `Some(true)` always, `Some(false)` never (the seed's protocol: from rest with the
+    /// first training record's offset), `None` (the default) with more than one training or
+    /// more than one validation record.
+    pub fn with_validation_refit(mut self, refit: Option<bool>) -> Self {
+        self.refit = refit;
+        self
+    }
+
+    /// Whether validation records get their offset and initial state refitted.
+    pub fn refits_validation(&self) -> bool {
+        let held = self.data.recordings.len() - self.fast.len();
+        held > 0 && self.refit.unwrap_or(held > 1 || self.fast.len() > 1)
+    }
+
+    /// Position of training record `r`'s initial-state fraction in a parameter vector.
+    fn state_at(&self, r: usize) -> Option<usize> {
+        self.with_h0
+            .then(|| 5 + if self.with_d0 { self.fast.len() } else { 0 } + r)
     }
 
     /// The same fit integrated by `scheme` (default: fast, automatic sub-steps).
@@ -488,41 +572,136 @@ impl BoucWenFit {
         }
     }
 
-    /// The parameters on set `set` (a training record's own offset; a validation record
-    /// gets the first training record's).
-    fn params(&self, p: &[f64], set: usize) -> crate::physics::bouc_wen::BoucWenParams {
-        let own = if set < self.fast.len() { set } else { 0 };
-        crate::physics::bouc_wen::BoucWenParams {
+    /// The parameters on training record `r` (its own offset).
+    fn params(&self, p: &[f64], r: usize) -> BoucWenParams {
+        BoucWenParams {
             d_e: p[0],
             alpha: p[1],
             beta: p[2],
             gamma: p[3],
             n: p[4],
-            d0: if self.with_d0 { p[5 + own] } else { 0.0 },
+            d0: if self.with_d0 { p[5 + r] } else { 0.0 },
         }
     }
 
-    /// Normalised model output on set `set`; unstable runs keep the samples before the
-    /// blow-up and hold the last finite value after it (for plots and metrics only).
-    fn simulate(&self, p: &[f64], set: usize) -> Vec<f64> {
+    /// Training record `r`'s initial state (normalised; 0: from rest).
+    fn train_state(&self, p: &[f64], params: &BoucWenParams, r: usize) -> f64 {
+        self.state_at(r)
+            .map_or(0.0, |i| initial_state(params, p[i]))
+    }
+
+    /// The parameters and initial state on set `set`: a training record's own; a validation
+    /// record's refitted on it ([`Self::refit`]) with several records, else the first
+    /// training record's d0 and the state of rest.
+    fn params_and_state(&self, p: &[f64], set: usize) -> (BoucWenParams, f64) {
+        if set < self.fast.len() {
+            let params = self.params(p, set);
+            return (params, self.train_state(p, &params, set));
+        }
+        let params = self.params(p, 0);
+        if !self.refits_validation() {
+            return (params, 0.0);
+        }
+        let (d0, h0) = self.refit(&params, set);
+        (BoucWenParams { d0, ..params }, h0)
+    }
+
+    /// Free run on set `set` (normalised; NaN from a blow-up on).
+    fn run(&self, params: &BoucWenParams, h0: f64, set: usize) -> Vec<f64> {
         let Some(d) = self.data.get(set) else {
             return Vec::new();
         };
         let mut out = vec![0.0; d.u.len()];
-        let params = self.params(p, set);
         let status = match self.scheme() {
             // A training record at its own sub-steps, a validation record at the most any
             // training record uses.
             BoucWenScheme::Fast { substeps } => {
                 let own = self.fast.get(set).map_or(substeps, FastInput::substeps);
-                bouc_wen_fast::simulate(&params, &d.u, own, &mut out)
+                bouc_wen_fast::simulate_from(params, h0, &d.u, own, &mut out)
             }
-            BoucWenScheme::Explicit => bouc_wen_fast::simulate_explicit(&params, &d.u, &mut out),
-            BoucWenScheme::Accurate => crate::physics::bouc_wen::simulate(&params, &d.u, &mut out),
+            BoucWenScheme::Explicit => {
+                bouc_wen_fast::simulate_explicit_from(params, h0, &d.u, &mut out)
+            }
+            BoucWenScheme::Accurate => bouc_wen::simulate_from(params, h0, &d.u, &mut out),
         };
-        if let crate::physics::bouc_wen::SimStatus::Unstable { at } = status {
+        if let SimStatus::Unstable { at } = status {
             out[at..].fill(f64::NAN);
         }
+        out
+    }
+
+    /// Validation set `set`'s own offset and initial state `(d0, h0)` (normalised) for the
+    /// actuator parameters of `params`: for each initial state the offset minimising the
+    /// squared error is the mean residual (0 when d0 is not fitted); the state's fraction of
+    /// the saturation level is searched over [-1, 1] on a grid of [`STATE_GRID`] points,
+    /// then by golden section between the best point's neighbours. Runs that blow up
+    /// count as infinitely bad; if all do, the state of rest and the offset at it.
+    fn refit(&self, params: &BoucWenParams, set: usize) -> (f64, f64) {
+        let Some(d) = self.data.get(set) else {
+            return (params.d0, 0.0);
+        };
+        let shape = BoucWenParams { d0: 0.0, ..*params };
+        // (sse, d0) at fraction q.
+        let at = |q: f64| -> (f64, f64) {
+            let out = self.run(&shape, initial_state(&shape, q), set);
+            let len = out.len().min(d.y.len()) as f64;
+            let r = || d.y.iter().zip(&out).map(|(y, m)| y - m);
+            let d0 = if self.with_d0 {
+                r().sum::<f64>() / len
+            } else {
+                0.0
+            };
+            let sse: f64 = r().map(|e| (e - d0) * (e - d0)).sum();
+            (if sse.is_finite() { sse } else { f64::INFINITY }, d0)
+        };
+        if shape.saturation().is_none() {
+            let (_, d0) = at(0.0);
+            return (if d0.is_finite() { d0 } else { 0.0 }, 0.0);
+        }
+        let step = 2.0 / (STATE_GRID - 1) as f64;
+        let grid = |i: usize| -1.0 + step * i as f64;
+        let (mut best_q, mut best) = (0.0, at(0.0));
+        for i in 0..STATE_GRID {
+            let q = grid(i);
+            let v = at(q);
+            if v.0 < best.0 {
+                (best_q, best) = (q, v);
+            }
+        }
+        if best.0.is_finite() {
+            let (mut a, mut b) = ((best_q - step).max(-1.0), (best_q + step).min(1.0));
+            let ratio = 0.5 * (5f64.sqrt() - 1.0);
+            let (mut x1, mut x2) = (b - ratio * (b - a), a + ratio * (b - a));
+            let (mut f1, mut f2) = (at(x1), at(x2));
+            for _ in 0..STATE_GOLDEN {
+                if f1.0 <= f2.0 {
+                    (b, x2, f2) = (x2, x1, f1);
+                    x1 = b - ratio * (b - a);
+                    f1 = at(x1);
+                } else {
+                    (a, x1, f1) = (x1, x2, f2);
+                    x2 = a + ratio * (b - a);
+                    f2 = at(x2);
+                }
+            }
+            for (q, v) in [(x1, f1), (x2, f2)] {
+                if v.0 < best.0 {
+                    (best_q, best) = (q, v);
+                }
+            }
+        } else {
+            best = at(0.0);
+            best_q = 0.0;
+        }
+        let d0 = if best.1.is_finite() { best.1 } else { 0.0 };
+        (d0, initial_state(&shape, best_q))
+    }
+
+    /// Normalised model output on set `set`; unstable runs keep the samples before the
+    /// blow-up and hold the last finite value after it (for plots and metrics only).
+    fn simulate(&self, p: &[f64], set: usize) -> Vec<f64> {
+        let (params, h0) = self.params_and_state(p, set);
+        let mut out = self.run(&params, h0, set);
         hold_finite(&mut out);
         out
     }
@@ -553,11 +732,22 @@ impl Objective for BoucWenFit {
                 BoucWenScheme::Fast { .. } | BoucWenScheme::Explicit => {
                     let params: Vec<_> =
                         points.chunks_exact(d).map(|p| self.params(p, r)).collect();
-                    bouc_wen_fast::costs(&params, &self.fast[r], &mut one);
+                    // From rest (no states: the same bits as before states existed).
+                    let states: Vec<f64> = match self.state_at(r) {
+                        Some(i) => points
+                            .chunks_exact(d)
+                            .zip(&params)
+                            .map(|(p, q)| initial_state(q, p[i]))
+                            .collect(),
+                        None => Vec::new(),
+                    };
+                    bouc_wen_fast::costs_from(&params, &states, &self.fast[r], &mut one);
                 }
                 BoucWenScheme::Accurate => {
                     for (p, o) in points.chunks_exact(d).zip(one.iter_mut()) {
-                        *o = crate::physics::bouc_wen::cost(&self.params(p, r), &t.u, &t.y);
+                        let params = self.params(p, r);
+                        let h0 = self.train_state(p, &params, r);
+                        *o = bouc_wen::cost_from(&params, h0, &t.u, &t.y);
                     }
                 }
             }
@@ -572,7 +762,7 @@ impl Objective for BoucWenFit {
             self.data
                 .trains()
                 .iter()
-                .map(|t| crate::physics::bouc_wen::cost_cap(&t.y))
+                .map(|t| bouc_wen::cost_cap(&t.y))
                 .sum(),
         )
     }
@@ -622,7 +812,9 @@ impl FitView for BoucWenFit {
     }
 
     /// d_e, alpha and d0 in the recording's units (output per input, output); beta, gamma
-    /// and n as fitted (on normalised data they act on the normalised state).
+    /// and n as fitted (on normalised data they act on the normalised state); with several
+    /// training records each one's initial state `h0` (output units), and with several
+    /// records each validation record's refitted `validate <name> d0` and `h0`.
     fn named_params(&self, p: &[f64]) -> Vec<(String, f64)> {
         let t = self.data.train();
         let scaled = t.u_scale != 1.0 || t.y_scale != 1.0;
@@ -642,14 +834,33 @@ impl FitView for BoucWenFit {
             (format!("gamma{tag}"), p[3]),
             ("n".into(), p[4]),
         ];
+        let at = |r: usize| {
+            if r == 0 {
+                String::new()
+            } else {
+                format!("@{}", r + 1)
+            }
+        };
         if self.with_d0 {
             for r in 0..self.fast.len() {
-                let at = if r == 0 {
-                    String::new()
-                } else {
-                    format!("@{}", r + 1)
-                };
-                v.push((format!("d0{at} [{yu}]"), p[5 + r] * ys));
+                v.push((format!("d0{} [{yu}]", at(r)), p[5 + r] * ys));
+            }
+        }
+        if self.with_h0 {
+            for r in 0..self.fast.len() {
+                let h0 = self.train_state(p, &self.params(p, r), r);
+                v.push((format!("h0{} [{yu}]", at(r)), h0 * ys));
+            }
+        }
+        if self.refits_validation() {
+            let sets = self.data.recordings.len();
+            for set in self.fast.len()..sets {
+                let (params, h0) = self.params_and_state(p, set);
+                let label = &self.data.recordings[set].0;
+                if self.with_d0 {
+                    v.push((format!("validate {label} d0 [{yu}]"), params.d0 * ys));
+                }
+                v.push((format!("validate {label} h0 [{yu}]"), h0 * ys));
             }
         }
         v
@@ -666,6 +877,283 @@ mod tests {
             .collect();
         let y = rbf::eq_3_18(&r);
         Recording::uniform("eq318", 1e-3, r, y).unwrap()
+    }
+
+    use rand::RngExt;
+
+    /// The generating Bouc-Wen model of the initial-state tests (saturation 1/0.9).
+    const TRUTH: BoucWenParams = BoucWenParams {
+        d_e: 0.8,
+        alpha: 1.0,
+        beta: 0.6,
+        gamma: 0.3,
+        n: 1.0,
+        d0: 0.0,
+    };
+    const TRUTH_X: [f64; 5] = [0.8, 1.0, 0.6, 0.3, 1.0];
+
+    /// A record of [`TRUTH`] (accurate kernel) at 2 ms: a two-tone drive of base frequency
+    /// `f` in [0.05, 0.95], simulated from rest for `skip + samples` samples of which the
+    /// first `skip` are dropped (`skip > 0`: the record starts mid-loop), plus offset `d0`
+    /// and uniform noise of amplitude `noise` (seeded). Returns the record and the true
+    /// hysteretic state at its first sample.
+    fn bw_record(
+        name: &str,
+        f: f64,
+        skip: usize,
+        samples: usize,
+        d0: f64,
+        noise: f64,
+        seed: u64,
+    ) -> (Recording, f64) {
+        let tau = 2.0 * std::f64::consts::PI;
+        let u: Vec<f64> = (0..skip + samples)
+            .map(|k| {
+                let t = k as f64 * 2e-3;
+                0.5 - 0.4 * (tau * f * t).cos() + 0.05 * (tau * 3.1 * f * t).sin()
+            })
+            .collect();
+        let mut y = vec![0.0; u.len()];
+        assert_eq!(bouc_wen::simulate(&TRUTH, &u, &mut y), SimStatus::Ok);
+        let h0 = TRUTH.d_e * u[skip] - y[skip];
+        let mut rng = crate::harness::TrialSeed::from_u64(seed).rng(0);
+        let y: Vec<f64> = y[skip..]
+            .iter()
+            .map(|v| v + d0 + noise * (2.0 * rng.random::<f64>() - 1.0))
+            .collect();
+        let rec = Recording::uniform(name, 2e-3, u[skip..].to_vec(), y).unwrap();
+        (rec, h0)
+    }
+
+    /// Best point of `budget` evaluations of CMA-ES on `fit`.
+    fn fit_cmaes(fit: BoucWenFit, budget: u64) -> (Vec<f64>, f64, std::sync::Arc<dyn Objective>) {
+        let obj: std::sync::Arc<dyn Objective> = std::sync::Arc::new(fit);
+        let rec = crate::harness::run_trial(crate::harness::TrialSpec {
+            objective_id: "fit",
+            optimizer_id: "cmaes",
+            trial: 0,
+            objective: std::sync::Arc::clone(&obj),
+            optimizer: &crate::optimizer::cmaes::CmaesConfig::default(),
+            budget,
+            stop_value: None,
+            stall: None,
+            seed: crate::harness::TrialSeed::from_u64(5),
+        });
+        (rec.best_x, rec.best, obj)
+    }
+
+    fn named(obj: &dyn Objective, x: &[f64], name: &str) -> f64 {
+        let v = obj.as_fit().unwrap().named_params(x);
+        v.iter()
+            .find(|(n, _)| n == name)
+            .unwrap_or_else(|| panic!("no {name} in {v:?}"))
+            .1
+    }
+
+    fn metric(obj: &dyn Objective, x: &[f64], name: &str) -> f64 {
+        let m = obj.metrics(x);
+        m.iter()
+            .find(|m| m.name == name)
+            .unwrap_or_else(|| panic!("no {name} in {m:?}"))
+            .value
+    }
+
+    /// Two noise-free records of one actuator, the second cut from the middle of a longer
+    /// run so that it starts mid-loop: with an initial state per record the fit recovers the
+    /// generating parameters and the second record's state, at a cost far below the best
+    /// fit from rest (which must bend the shared parameters to explain the second start).
+    #[test]
+    fn each_training_record_gets_an_initial_state_of_its_own() {
+        let (a, a0) = bw_record("a", 1.0, 0, 750, 0.0, 0.0, 1);
+        let (b, b0) = bw_record("b", 0.7, 1071, 900, 0.0, 0.0, 2);
+        let sat = TRUTH.saturation().unwrap();
+        assert_eq!(a0, 0.0);
+        assert!(b0.abs() > 0.2 * sat, "the cut starts mid-loop: {b0}");
+        let recs = [a, b];
+        let make = || BoucWenFit::new(&recs, &[], false, false, 0.0, 1.5).unwrap();
+        let fit = make();
+        assert!(fit.fits_initial_states());
+        assert_eq!(fit.dim(), 7);
+        assert_eq!(&fit.bounds().lower()[5..], &[-1.0, -1.0]);
+        assert_eq!(&fit.bounds().upper()[..6], &[1.5, 1.5, 1.5, 1.5, 1.5, 1.0]);
+        // At the truth (fractions 0 and b0/sat) the cost is the scheme's error only.
+        let mut x: Vec<f64> = TRUTH_X.to_vec();
+        x.extend([0.0, b0 / sat]);
+        let at_truth = fit.evaluate(&x);
+        let (best, cost, obj) = fit_cmaes(make(), 12_000);
+        let rest = make().with_initial_states(false);
+        assert_eq!(rest.dim(), 5);
+        let (rest_best, rest_cost, rest_obj) = fit_cmaes(rest, 12_000);
+        let h0 = named(obj.as_ref(), &best, "h0@2 []");
+        eprintln!(
+            "cost at truth {at_truth:.2e}, fitted {cost:.2e}, from rest {rest_cost:.2e} \
+             (ratio {:.0}); h0@2 {h0:.5} vs {b0:.5} ({:.1e} of sat); h0 {:.2e}; x {best:?}; \
+             from rest {rest_best:?}",
+            rest_cost / cost,
+            (h0 - b0).abs() / sat,
+            named(obj.as_ref(), &best, "h0 []"),
+        );
+        assert!(at_truth < 1e-8, "{at_truth:e}");
+        for (i, (got, want)) in best.iter().zip(TRUTH_X).enumerate() {
+            assert!(
+                (got - want).abs() < 0.01 * want,
+                "parameter {i}: {got} vs {want}"
+            );
+        }
+        assert!((h0 - b0).abs() < 0.01 * sat, "h0@2 {h0} vs {b0}");
+        assert!(named(obj.as_ref(), &best, "h0 []").abs() < 0.01 * sat);
+        assert!(
+            cost < 1e-3 * rest_cost,
+            "{cost:e} vs from rest {rest_cost:e}"
+        );
+        // The from-rest fit's second record is visibly off at its start.
+        let train2 = |o: &dyn Objective, x: &[f64]| metric(o, x, "train2 RMSE");
+        assert!(train2(rest_obj.as_ref(), &rest_best) > 10.0 * train2(obj.as_ref(), &best));
+    }
+
+    /// A validation record with an offset and a mid-loop start of its own, beside two
+    /// training records: at the actuator's true parameters its refitted offset and initial
+    /// state are the truth's and its RMSE is the noise's, where the seed's protocol (the
+    /// first training record's offset, from rest) is far off.
+    #[test]
+    fn validation_records_get_their_offset_and_initial_state_refitted() {
+        let (a, _) = bw_record("a", 1.0, 0, 750, 0.02, 0.0, 1);
+        let (b, b0) = bw_record("b", 0.7, 1071, 900, 0.07, 0.0, 2);
+        let noise = 0.004; // uniform: sigma = noise / sqrt(3)
+        let sigma = noise / 3f64.sqrt();
+        let (v, v0) = bw_record("v", 0.9, 1300, 1000, -0.03, noise, 3);
+        let sat = TRUTH.saturation().unwrap();
+        assert!(v0.abs() > 0.1 * sat, "mid-loop: {v0}");
+        let fit = BoucWenFit::new(
+            &[a.clone(), b],
+            &[("v".into(), v.clone())],
+            true,
+            false,
+            0.0,
+            1.5,
+        )
+        .unwrap();
+        assert_eq!(fit.dim(), 9);
+        let mut x: Vec<f64> = TRUTH_X.to_vec();
+        x.extend([0.02, 0.07, 0.0, b0 / sat]);
+        let rmse = metric(&fit, &x, "v RMSE");
+        let d0 = named(&fit, &x, "validate v d0 []");
+        let h0 = named(&fit, &x, "validate v h0 []");
+        // The seed's protocol: from rest with the first record's offset.
+        let old = {
+            let mut out = vec![0.0; v.len()];
+            let p = BoucWenParams { d0: 0.02, ..TRUTH };
+            bouc_wen_fast::simulate(&p, &v.u, fit.scheme_substeps(), &mut out);
+            errors(&v.y, &out, 0, 1.0).1
+        };
+        eprintln!(
+            "validation RMSE {rmse:.5} (noise sigma {sigma:.5}; seed's protocol {old:.4}); \
+             d0 {d0:.5} vs -0.03, h0 {h0:.5} vs {v0:.5}"
+        );
+        assert!(
+            rmse < 1.05 * sigma && rmse > 0.95 * sigma,
+            "{rmse} vs {sigma}"
+        );
+        assert!((d0 + 0.03).abs() < 5e-4, "d0 {d0}");
+        assert!((h0 - v0).abs() < 0.01 * sat, "h0 {h0} vs {v0}");
+        assert!(old > 10.0 * rmse, "{old}");
+        // Training records keep their own: the first from (almost) rest, the second mid-loop.
+        assert!((named(&fit, &x, "h0@2 []") - b0).abs() < 1e-12);
+        // One training and two validation records: refitted too (the same record twice).
+        let two = BoucWenFit::new(
+            std::slice::from_ref(&a),
+            &[("v".into(), v.clone()), ("w".into(), v)],
+            true,
+            false,
+            0.0,
+            1.5,
+        )
+        .unwrap();
+        assert_eq!(two.dim(), 6);
+        let x1: Vec<f64> = TRUTH_X.iter().copied().chain([0.02]).collect();
+        assert_eq!(named(&two, &x1, "validate w h0 []"), h0);
+        assert_eq!(metric(&two, &x1, "w RMSE"), rmse);
+    }
+
+    /// One training and one validation record: the seed's protocol, bit for bit (training
+    /// from rest; validation from rest with the training record's offset), on every scheme.
+    #[test]
+    fn one_training_and_one_validation_record_keep_the_seed_protocol() {
+        let (a, _) = bw_record("a", 1.0, 0, 750, 0.02, 0.001, 1);
+        let (v, _) = bw_record("v", 0.9, 1300, 1000, -0.03, 0.001, 3);
+        let x: Vec<f64> = vec![0.79, 1.02, 0.58, 0.33, 0.97, 0.015];
+        let p = BoucWenParams {
+            d_e: x[0],
+            alpha: x[1],
+            beta: x[2],
+            gamma: x[3],
+            n: x[4],
+            d0: x[5],
+        };
+        for scheme in [
+            BoucWenScheme::Fast { substeps: 0 },
+            BoucWenScheme::Accurate,
+            BoucWenScheme::Explicit,
+        ] {
+            let fit = BoucWenFit::new(
+                std::slice::from_ref(&a),
+                &[("v".into(), v.clone())],
+                true,
+                false,
+                0.0,
+                1.5,
+            )
+            .unwrap()
+            .with_scheme(scheme);
+            assert!(!fit.fits_initial_states() && !fit.refits_validation());
+            assert_eq!(fit.dim(), 6);
+            let names: Vec<String> = fit.named_params(&x).into_iter().map(|n| n.0).collect();
+            assert!(names.iter().all(|n| !n.contains("h0")), "{names:?}");
+            // The old way: free runs from rest.
+            let run = |u: &[f64], out: &mut [f64]| match scheme {
+                BoucWenScheme::Fast { .. } => {
+                    bouc_wen_fast::simulate(&p, u, fit.scheme_substeps(), out)
+                }
+                BoucWenScheme::Accurate => bouc_wen::simulate(&p, u, out),
+                BoucWenScheme::Explicit => bouc_wen_fast::simulate_explicit(&p, u, out),
+            };
+            let (mut ta, mut tv) = (vec![0.0; a.len()], vec![0.0; v.len()]);
+            assert_eq!(run(&a.u, &mut ta), SimStatus::Ok);
+            assert_eq!(run(&v.u, &mut tv), SimStatus::Ok);
+            let (max, rms) = errors(&v.y, &tv, 0, 1.0);
+            assert_eq!(metric(&fit, &x, "v RMSE").to_bits(), rms.to_bits());
+            assert_eq!(metric(&fit, &x, "v max error").to_bits(), max.to_bits());
+            let (_, train) = errors(&a.y, &ta, 0, 1.0);
+            assert_eq!(metric(&fit, &x, "train RMSE").to_bits(), train.to_bits());
+            let batched = |input: FastInput| {
+                let mut c = [0.0];
+                bouc_wen_fast::costs(&[p], &input, &mut c);
+                c[0]
+            };
+            let cost = match scheme {
+                BoucWenScheme::Accurate => bouc_wen::cost(&p, &a.u, &a.y),
+                BoucWenScheme::Explicit => batched(FastInput::explicit(&a.u, &a.y)),
+                BoucWenScheme::Fast { .. } => batched(FastInput::new(&a.u, &a.y, 0)),
+            };
+            assert_eq!(fit.evaluate(&x).to_bits(), cost.to_bits());
+            // `refit_validation = "never"` keeps this protocol with several validation
+            // records (a benchmark's official test); "always" refits a single one.
+            let make = |vs: &[(String, Recording)], refit| {
+                BoucWenFit::new(std::slice::from_ref(&a), vs, true, false, 0.0, 1.5)
+                    .unwrap()
+                    .with_scheme(scheme)
+                    .with_validation_refit(refit)
+            };
+            let twice = [("v".into(), v.clone()), ("w".into(), v.clone())];
+            let never = make(&twice, Some(false));
+            assert!(!never.refits_validation());
+            assert_eq!(metric(&never, &x, "w RMSE").to_bits(), rms.to_bits());
+            assert!(make(&twice, None).refits_validation());
+            let always = make(&twice[..1], Some(true));
+            assert!(always.refits_validation());
+            assert!(metric(&always, &x, "v RMSE") < rms);
+            assert!(make(&[], Some(true)).named_params(&x).len() == 6);
+        }
     }
 
     #[test]

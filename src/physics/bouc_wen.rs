@@ -575,12 +575,18 @@ pub fn instability_bound(p: &BoucWenParams, u: &[f64]) -> f64 {
 /// Free run from the virgin state at `u[0]` into `out` (`out.len() ≥ u.len()`). Stops at
 /// the first unstable sample (see [`instability_bound`]).
 pub fn simulate(p: &BoucWenParams, u: &[f64], out: &mut [f64]) -> SimStatus {
+    simulate_from(p, 0.0, u, out)
+}
+
+/// [`simulate`] from hysteretic state `h0` at `u[0]` (a record that starts mid-loop; `0.0`
+/// is the virgin state). The first output is `d_e u[0] + d0 - h0`.
+pub fn simulate_from(p: &BoucWenParams, h0: f64, u: &[f64], out: &mut [f64]) -> SimStatus {
     let Some(&u0) = u.first() else {
         return SimStatus::Ok;
     };
     let bound = instability_bound(p, u);
     let k = BoucWenKernel::new(p);
-    let mut st = BoucWenState::new(u0);
+    let mut st = BoucWenState { h: h0, u_prev: u0 };
     for (i, (&x, o)) in u.iter().zip(out.iter_mut()).enumerate() {
         *o = st.step_with(&k, x);
         if !st.h.is_finite() || st.h.abs() > bound {
@@ -606,6 +612,11 @@ pub fn cost_cap(y: &[f64]) -> f64 {
 /// `at` of `N`, costs `cap · (2 - at/N)`: above every stable cost on the same data, and
 /// higher the earlier the blow-up, so optimizers are steered towards stability.
 pub fn cost(p: &BoucWenParams, u: &[f64], y: &[f64]) -> f64 {
+    cost_from(p, 0.0, u, y)
+}
+
+/// [`cost`] of a free run from hysteretic state `h0` at `u[0]` (see [`simulate_from`]).
+pub fn cost_from(p: &BoucWenParams, h0: f64, u: &[f64], y: &[f64]) -> f64 {
     let len = u.len().min(y.len());
     if len == 0 {
         return 0.0;
@@ -613,7 +624,10 @@ pub fn cost(p: &BoucWenParams, u: &[f64], y: &[f64]) -> f64 {
     let (u, y) = (&u[..len], &y[..len]);
     let bound = instability_bound(p, u);
     let k = BoucWenKernel::new(p);
-    let mut st = BoucWenState::new(u[0]);
+    let mut st = BoucWenState {
+        h: h0,
+        u_prev: u[0],
+    };
     let mut j = 0.0;
     for (i, (&x, &t)) in u.iter().zip(y).enumerate() {
         let d = st.step_with(&k, x);
