@@ -50,6 +50,7 @@ use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use residual::{Located, TestResult};
+use rustfft::num_complex::Complex64;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -746,8 +747,75 @@ enum Seeds<'a> {
     /// From these fits' values (e.g. the singles of a pair), polished only.
     At(&'a [&'a Fitted]),
     /// Searched from the parent's neutral values, with these earlier fits' values among the
-    /// search's first points.
-    Hinted(&'a Memory),
+    /// search's first points, and modes at these frequencies (Hz) of the parent's residual
+    /// peaks.
+    Hinted(&'a Memory, &'a [f64]),
+}
+
+/// Damping ratios a mode is started at from a residual peak: the peak says where, not how
+/// sharp.
+const PEAK_ZETAS: [f64; 2] = [0.03, 0.1];
+
+/// Starting points with a mode of `parts` at the parent's residual peaks `peaks_hz`: one
+/// mode at each peak; two modes at two peaks, or (the parent has a mode) the second at
+/// each peak beside the parent's.
+fn mode_hints(
+    st: &Structure,
+    start: &[f64],
+    parent_has_mode: bool,
+    peaks_hz: &[f64],
+) -> Vec<Vec<f64>> {
+    if st.placement() != Placement::After {
+        return Vec::new();
+    }
+    let Some(form) = st.form(Effect::Dynamics) else {
+        return Vec::new();
+    };
+    let specs = st.specs();
+    let set = |x: &mut Vec<f64>, name: &str, v: f64| {
+        if let Some(i) = specs.iter().position(|s| s.name == name) {
+            let s = &specs[i];
+            // Inside the range: its top is "no mode".
+            x[i] = v.clamp(s.lower, s.upper - 1e-6 * (s.upper - s.lower));
+        }
+    };
+    let mut out = Vec::new();
+    let logf = |f: f64| f.max(1e-300).log10();
+    for &z in &PEAK_ZETAS {
+        match form {
+            Form::TwoModes if parent_has_mode => {
+                for &f in peaks_hz {
+                    let mut x = start.to_vec();
+                    set(&mut x, "mode2_log10_hz", logf(f));
+                    set(&mut x, "mode2_log10_zeta", z.log10());
+                    set(&mut x, "mode2_share", 0.3);
+                    out.push(x);
+                }
+            }
+            Form::TwoModes => {
+                for (i, &f1) in peaks_hz.iter().enumerate() {
+                    for &f2 in &peaks_hz[i + 1..] {
+                        let mut x = start.to_vec();
+                        set(&mut x, "mode_log10_hz", logf(f1.min(f2)));
+                        set(&mut x, "mode_log10_zeta", z.log10());
+                        set(&mut x, "mode2_log10_hz", logf(f1.max(f2)));
+                        set(&mut x, "mode2_log10_zeta", z.log10());
+                        set(&mut x, "mode2_share", 0.5);
+                        out.push(x);
+                    }
+                }
+            }
+            _ => {
+                for &f in peaks_hz {
+                    let mut x = start.to_vec();
+                    set(&mut x, "mode_log10_hz", logf(f));
+                    set(&mut x, "mode_log10_zeta", z.log10());
+                    out.push(x);
+                }
+            }
+        }
+    }
+    out
 }
 
 /// `start` with the values `from` has for the parameters of `effects` (by name).
@@ -793,12 +861,17 @@ fn fit_proposal(
                 start = seeded(&st, &start, &effects, f);
             }
         }
-        Seeds::Hinted(memory) => {
+        Seeds::Hinted(memory, peaks_hz) => {
             for part in &p.parts {
                 let here = memory.get(part).into_iter().flatten();
                 for f in here.filter(|f| f.structure.placement() == st.placement()) {
                     hints.push(seeded(&st, &start, &[part.0], f));
                 }
+            }
+            // A new mode, or the parent's modes searched again beside a new input timing.
+            let has_mode = parent.has(Effect::Dynamics);
+            if !moved && (effects.contains(&Effect::Dynamics) || (has_mode && p.is_timing())) {
+                hints.extend(mode_hints(&st, &start, has_mode, peaks_hz));
             }
         }
     }
@@ -820,6 +893,16 @@ fn fit_proposal(
     // stage's grid runs.
     if !moved && p.effects().contains(&Effect::Creep) {
         free.extend((0..specs.len()).filter(shape));
+    }
+    // An input timing beside a mode fitted without it: the mode's phase stood in for the
+    // delay, a narrow basin the polish alone does not leave (blind seed 20261148 case 82:
+    // a 2.3-sample delay beside modes at 60 and 152 Hz, the modes fitted near 55 Hz without
+    // it). The modes are searched again with the timing, started at the residual's peaks.
+    if !moved && p.is_timing() && parent.has(Effect::Dynamics) {
+        let modes: Vec<usize> = (0..specs.len())
+            .filter(|&i| specs[i].effect == Some(Effect::Dynamics) && !free.contains(&i))
+            .collect();
+        free.extend(modes);
     }
     let budget = if moved {
         opts.placement_budget
@@ -968,7 +1051,15 @@ fn exchanges(
         .with_max_len(1)
         .map(|(i, p)| {
             let (rest, theta) = &rests[*i];
-            let c = fit_proposal(rest, theta, p, Seeds::Hinted(memory), d, opts, 300 + round);
+            let c = fit_proposal(
+                rest,
+                theta,
+                p,
+                Seeds::Hinted(memory, &[]),
+                d,
+                opts,
+                300 + round,
+            );
             (open[*i].0, p.clone(), c)
         })
         .collect();
@@ -1112,30 +1203,60 @@ fn at_noise_floor(validate_rmse: f64, validate_noise: f64, noise: f64, share: f6
 const FEEDBACK_WORTH: f64 = 1.5;
 
 /// A mode is a resonance when its gain peaks at least 2x (6 dB) over its static gain
-/// (ζ below about 0.26) at a frequency the samples resolve (below 0.4 of the sampling
-/// rate). A fitted mode with no such peak is a low-pass, a phase lag the data cannot place
-/// after rather than before the hysteresis: input timing explains it with no resonance.
+/// (one mode: ζ below about 0.26) at a frequency the samples resolve (below 0.4 of the
+/// sampling rate). A fitted mode with no such peak is a low-pass, a phase lag the data cannot
+/// place after rather than before the hysteresis: input timing explains it with no resonance.
 const RESONANT_ZETA: f64 = 0.26;
 const RESOLVED_FRACTION: f64 = 0.4;
 
-/// Whether a fitted mode after the hysteresis is a resonance ([`RESONANT_ZETA`]); `None`
-/// for a model with no such mode.
+/// Whether the fitted modes after the hysteresis resonate: the gain of their sum (shares
+/// `1 - s`, `s`) peaks at least as one mode at [`RESONANT_ZETA`] does, below
+/// [`RESOLVED_FRACTION`] of the sampling rate; `None` for a model with no such mode. The
+/// sum, not each mode: a sharp mode with a share of 0.5 % beside an overdamped one is a
+/// lag (blind seed 20261140 case 85: a second-order input lag fitted as modes at 347 Hz,
+/// ζ 0.85, and at 150 Hz, ζ 0.05, share 0.5 %).
 fn resonant(f: &Fitted, dt: f64) -> Option<bool> {
     let p = named(f);
-    let modes: Vec<(f64, f64)> = ["mode", "mode2"]
-        .iter()
-        .filter_map(|m| {
-            Some((
-                *p.get(&format!("{m}_freq_hz"))?,
-                *p.get(&format!("{m}_zeta"))?,
-            ))
-        })
+    let mode = |m: &str| {
+        Some((
+            *p.get(&format!("{m}_freq_hz"))?,
+            *p.get(&format!("{m}_zeta"))?,
+        ))
+    };
+    let first = mode("mode")?;
+    let share = p.get("mode2_share").copied().unwrap_or(0.0).clamp(0.0, 1.0);
+    let second = mode("mode2").filter(|_| share > 0.0);
+    let parts: Vec<(f64, f64, f64)> = std::iter::once((first.0, first.1, 1.0 - share))
+        .chain(second.map(|m| (m.0, m.1, share)))
+        .filter(|m| m.0.is_finite() && m.0 > 0.0)
         .collect();
-    (!modes.is_empty()).then(|| {
-        modes
+    let gain = |hz: f64| {
+        parts
             .iter()
-            .any(|&(hz, zeta)| zeta < RESONANT_ZETA && hz < RESOLVED_FRACTION / dt)
-    })
+            .map(|&(fm, z, w)| {
+                let r = hz / fm;
+                w / Complex64::new(1.0 - r * r, 2.0 * z.max(0.0) * r)
+            })
+            .sum::<Complex64>()
+            .norm()
+    };
+    let top = RESOLVED_FRACTION / dt;
+    let z = RESONANT_ZETA;
+    let need = 1.0 / (2.0 * z * (1.0 - z * z).sqrt());
+    // The sum's peaks inside the resolved band (a local maximum below its top; a skirt
+    // rising to the top is a mode beyond it): each mode's own peak and a log grid.
+    let mut hz: Vec<f64> = parts
+        .iter()
+        .map(|&(fm, z, _)| fm * (1.0 - 2.0 * z * z).max(0.0).sqrt())
+        .chain((0..=800).map(|k| top * 10f64.powf(-4.0 * (1.0 - k as f64 / 800.0))))
+        .filter(|&f| f > 0.0 && f <= top)
+        .collect();
+    hz.sort_by(f64::total_cmp);
+    let g: Vec<f64> = hz.iter().map(|&f| gain(f)).collect();
+    Some(
+        (1..g.len().saturating_sub(1))
+            .any(|k| g[k] >= need && g[k] >= g[k - 1] && g[k] >= g[k + 1]),
+    )
 }
 
 /// How close (log10 units, 12 %) to the fastest time constant creep may take counts as
@@ -1704,6 +1825,13 @@ pub fn diagnose_with_tests(
             let moves = |p: &Proposal| p.placement != parent.placement();
             let (placed, mut rest): (Vec<Proposal>, Vec<Proposal>) =
                 pool.drain(..).partition(|p| moves(p));
+            // Where the parent's training residual peaks: modes are started there too.
+            let e_t: Vec<f64> =
+                d.yt.iter()
+                    .zip(&current.out_t)
+                    .map(|(a, b)| a - b)
+                    .collect();
+            let peaks_hz = residual::peak_frequencies(&d.ut, &e_t, dt, train_noise, 3);
             // One proposal per job (here and in every fan-out of the search): fits take
             // seconds, and their balance should not rest on rayon's split heuristics
             // (measured on seed 20261134 case 95: 1.7 of 2 cores busy either way).
@@ -1711,7 +1839,7 @@ pub fn diagnose_with_tests(
                 .par_iter()
                 .with_max_len(1)
                 .map(|p| {
-                    let seeds = Seeds::Hinted(&memory);
+                    let seeds = Seeds::Hinted(&memory, &peaks_hz);
                     fit_proposal(&parent, &current.fitted.theta, p, seeds, &d, opts, round)
                 })
                 .collect();
@@ -1750,7 +1878,7 @@ pub fn diagnose_with_tests(
                     .par_iter()
                     .with_max_len(1)
                     .map(|p| {
-                        let seeds = Seeds::Hinted(&memory);
+                        let seeds = Seeds::Hinted(&memory, &peaks_hz);
                         fit_proposal(&parent, &current.fitted.theta, p, seeds, &d, opts, round)
                     })
                     .collect();
@@ -2333,11 +2461,114 @@ mod tests {
             &base.structure,
             &base.theta,
             &p,
-            Seeds::Hinted(&Memory::new()),
+            Seeds::Hinted(&Memory::new(), &[]),
             data,
             opts,
             1,
         )
+    }
+
+    /// A record with a delay of `delay` samples before the hysteresis and a mode of `hz`,
+    /// damping `zeta` after it, written without `Structure` (the mode by RK4 on 20 steps a
+    /// sample, the input held), noise of RMS `sigma` from the stream `(salt, label)`.
+    fn delayed_mode_record(
+        u: &[f64],
+        dt: f64,
+        (delay, hz, zeta): (usize, f64, f64),
+        sigma: f64,
+        (salt, label): (u64, &str),
+    ) -> Vec<f64> {
+        let p = TEST_BOUC_WEN;
+        let mut bw = BoucWenState::new(u[0]);
+        let w = std::f64::consts::TAU * hz;
+        let d0 = bw.step(&p, u[0]);
+        let (mut x, mut v) = (d0, 0.0);
+        let mut rng = TrialSeed::derive(salt, label, "noise", 0).rng(0);
+        let h = dt / 20.0;
+        let f = |x: f64, v: f64, d: f64| (v, w * w * (d - x) - 2.0 * zeta * w * v);
+        (0..u.len())
+            .map(|k| {
+                let out = x + sigma * standard_normal(&mut rng);
+                let d = bw.step(&p, u[k.saturating_sub(delay)]);
+                for _ in 0..20 {
+                    let k1 = f(x, v, d);
+                    let k2 = f(x + 0.5 * h * k1.0, v + 0.5 * h * k1.1, d);
+                    let k3 = f(x + 0.5 * h * k2.0, v + 0.5 * h * k2.1, d);
+                    let k4 = f(x + h * k3.0, v + h * k3.1, d);
+                    x += h / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0);
+                    v += h / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1);
+                }
+                out
+            })
+            .collect()
+    }
+
+    /// A delay beside a lightly damped mode: the mode fitted first takes some of the
+    /// delay's phase; the delay proposed next searches the mode again (started at the
+    /// residual's peaks) and both come back: the delay within a sample, the mode within 3 %,
+    /// the training residual at the noise.
+    #[test]
+    fn a_delay_beside_a_mode_searches_the_mode_again() {
+        let (dt, n, sigma) = (1e-3, 6000, 1e-3);
+        let probe = |k: usize, a: f64| a * (std::f64::consts::TAU * 70.0 * k as f64 * dt).sin();
+        let tu: Vec<f64> = triangle_chirp(n, dt, 1.0, 4.6)
+            .iter()
+            .enumerate()
+            .map(|(k, x)| x + probe(k, 0.08))
+            .collect();
+        let vu: Vec<f64> = triangle_chirp(n, dt, 0.6, 3.8)
+            .iter()
+            .enumerate()
+            .map(|(k, x)| x + probe(k, 0.06))
+            .collect();
+        let truth = (3, 110.0, 0.04);
+        let ty = delayed_mode_record(&tu, dt, truth, sigma, (11, "delay-mode-train"));
+        let vy = delayed_mode_record(&vu, dt, truth, sigma, (11, "delay-mode-validate"));
+        let data = Data::new(tu, ty, vu, vy, false, dt);
+        let opts = Options::default();
+        let mode = plain_plus(&data, dt, Effect::Dynamics, Form::OneMode, &opts);
+        let e: Vec<f64> = data
+            .yt
+            .iter()
+            .zip(&mode.out_t)
+            .map(|(a, b)| a - b)
+            .collect();
+        let peaks = residual::peak_frequencies(&data.ut, &e, dt, sigma, 3);
+        let p = Proposal {
+            parts: vec![(Effect::Delay, Form::Transport)],
+            placement: Placement::After,
+        };
+        let both = fit_proposal(
+            &mode.fitted.structure,
+            &mode.fitted.theta,
+            &p,
+            Seeds::Hinted(&Memory::new(), &peaks),
+            &data,
+            &opts,
+            2,
+        );
+        let v = named(&both.fitted);
+        let rmse = |out: &[f64]| {
+            residual::rms(
+                &data
+                    .yt
+                    .iter()
+                    .zip(out)
+                    .map(|(a, b)| a - b)
+                    .collect::<Vec<_>>(),
+            )
+        };
+        let why = format!(
+            "{v:?}, peaks {peaks:?}, mode alone {:?}",
+            named(&mode.fitted)
+        );
+        assert!((v["delay_s"] / dt - 3.0).abs() < 1.0, "{why}");
+        assert!((v["mode_freq_hz"] / 110.0 - 1.0).abs() < 0.03, "{why}");
+        assert!(
+            rmse(&both.out_t) < 1.3 * sigma,
+            "{} {why}",
+            rmse(&both.out_t)
+        );
     }
 
     /// The exchanges open to `fitted` with nothing fitted in earlier rounds, in round 1.
@@ -2467,7 +2698,7 @@ mod tests {
             &parent.structure,
             &parent.theta,
             &creep,
-            Seeds::Hinted(&Memory::new()),
+            Seeds::Hinted(&Memory::new(), &[]),
             &data,
             &opts,
             1,
@@ -2538,7 +2769,7 @@ mod tests {
             &parent.structure,
             &parent.theta,
             &asym,
-            Seeds::Hinted(&Memory::new()),
+            Seeds::Hinted(&Memory::new(), &[]),
             &data,
             &opts,
             1,
@@ -2935,6 +3166,23 @@ mod tests {
         };
         assert_eq!(two(1.0, 0.05), Some(true), "one resonant mode suffices");
         assert_eq!(two(1.0, 0.6), Some(false));
+        // A sharp mode with a share of 0.5 % beside an overdamped one: the sum is a lag.
+        let tiny = |share: f64| {
+            let f = fitted(
+                Form::TwoModes,
+                &[
+                    ("mode_log10_hz", 150f64.log10()),
+                    ("mode_log10_zeta", 0.05f64.log10()),
+                    ("mode2_log10_hz", 347f64.log10()),
+                    ("mode2_log10_zeta", 0.85f64.log10()),
+                    ("mode2_share", share),
+                ],
+                dt,
+            );
+            resonant(&f, dt)
+        };
+        assert_eq!(tiny(0.995), Some(false), "0.5 % of a sharp mode");
+        assert_eq!(tiny(0.5), Some(true), "half of it peaks 5x");
         let plain = Structure::new(&[], Some(1.0), Context::from_training(&[0.0, 1.0], dt));
         let f = Fitted::at(&plain, theta_with(&plain, &[]), &[0.0, 1.0], &[0.0, 1.0], 0);
         assert_eq!(resonant(&f, dt), None);
