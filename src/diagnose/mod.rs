@@ -1212,9 +1212,9 @@ const RESOLVED_FRACTION: f64 = 0.4;
 /// Whether the fitted modes after the hysteresis resonate: the gain of their sum (shares
 /// `1 - s`, `s`) peaks at least as one mode at [`RESONANT_ZETA`] does, below
 /// [`RESOLVED_FRACTION`] of the sampling rate; `None` for a model with no such mode. The
-/// sum, not each mode: a sharp mode with a share of 0.5 % beside an overdamped one is a
-/// lag (blind seed 20261140 case 85: a second-order input lag fitted as modes at 347 Hz,
-/// ζ 0.85, and at 150 Hz, ζ 0.05, share 0.5 %).
+/// sum, not each mode: a sharp mode of no share beside an overdamped one is a lag (blind
+/// seed 20261146 case 82: a second-order input lag fitted as modes at 160 Hz, ζ 1.25, and
+/// at 16 Hz, ζ 0.005, share 0).
 fn resonant(f: &Fitted, dt: f64) -> Option<bool> {
     let p = named(f);
     let mode = |m: &str| {
