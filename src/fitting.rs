@@ -216,8 +216,13 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
     }
     if named.len() <= 16 {
         text += "\nparameters:\n";
+        let w = named
+            .iter()
+            .map(|(k, _)| k.chars().count())
+            .max()
+            .unwrap_or(0);
         for (k, v) in &named {
-            text += &format!("  {k:<10} {}\n", sig(*v, 6));
+            text += &format!("  {k:<w$} {}\n", sig(*v, 6));
         }
     }
     text += &format!("\nfit folder: {}\n", req.out.display());

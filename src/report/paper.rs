@@ -259,7 +259,9 @@ pub fn report_markdown(a: &Analysis) -> String {
     if !metrics.is_empty() {
         s += "\n## Model metrics at the final points\n\n\
               One-step-ahead predictions use the measured past outputs and flatter a model; \
-              free-run simulations use the model's own. Validation data are never fitted.\n\n";
+              free-run simulations use the model's own. The model is never fitted to validation \
+              data; with several records, a validation record's own offset and initial state \
+              are refitted on it with the model held fixed (`refit_validation`).\n\n";
         s += &metrics;
     }
     s += "\n## Average ranks\n\n";
