@@ -421,6 +421,11 @@ fn validation_residual(yv: &[f64], e: &Evaluated) -> Vec<f64> {
     yv.iter().zip(&e.out_v).map(|(y, m)| y - m).collect()
 }
 
+/// The training record's residual of a fitted model.
+fn training_residual(yt: &[f64], e: &Evaluated) -> Vec<f64> {
+    yt.iter().zip(&e.out_t).map(|(y, m)| y - m).collect()
+}
+
 /// The validation test of the gate and of the backward step: how much `better` lowers the
 /// validation mean square below `worse` ([`gain_band`]), the fall itself, and whether it
 /// passes: significant and at least `needed`.
@@ -1732,10 +1737,10 @@ pub fn diagnose_with_tests(
     evaluations += base.fitted.evaluations - base_evals_fit;
     let (boot, boot_evals) = bootstrap_scores(&base.fitted, &d, noise.max(1e-300), opts);
     evaluations += boot_evals;
-    let ev_base: Vec<f64> = d.yv.iter().zip(&base.out_v).map(|(a, b)| a - b).collect();
+    let ev_base = validation_residual(&d.yv, &base);
     let unit = validate.units[2].clone();
     let mut located = residual::locate(&d.uv, &ev_base, dv, noise, &unit);
-    let et_base: Vec<f64> = d.yt.iter().zip(&base.out_t).map(|(a, b)| a - b).collect();
+    let et_base = training_residual(&d.yt, &base);
     // A start-up in either record: one finding, the longest window to leave out.
     let mut starts: Vec<String> = Vec::new();
     let mut longest = 0.0f64;
@@ -1826,11 +1831,7 @@ pub fn diagnose_with_tests(
             let (placed, mut rest): (Vec<Proposal>, Vec<Proposal>) =
                 pool.drain(..).partition(|p| moves(p));
             // Where the parent's training residual peaks: modes are started there too.
-            let e_t: Vec<f64> =
-                d.yt.iter()
-                    .zip(&current.out_t)
-                    .map(|(a, b)| a - b)
-                    .collect();
+            let e_t = training_residual(&d.yt, &current);
             let peaks_hz = residual::peak_frequencies(&d.ut, &e_t, dt, train_noise, 3);
             // One proposal per job (here and in every fan-out of the search): fits take
             // seconds, and their balance should not rest on rayon's split heuristics
@@ -2527,12 +2528,7 @@ mod tests {
         let data = Data::new(tu, ty, vu, vy, false, dt);
         let opts = Options::default();
         let mode = plain_plus(&data, dt, Effect::Dynamics, Form::OneMode, &opts);
-        let e: Vec<f64> = data
-            .yt
-            .iter()
-            .zip(&mode.out_t)
-            .map(|(a, b)| a - b)
-            .collect();
+        let e = training_residual(&data.yt, &mode);
         let peaks = residual::peak_frequencies(&data.ut, &e, dt, sigma, 3);
         let p = Proposal {
             parts: vec![(Effect::Delay, Form::Transport)],
@@ -2548,27 +2544,15 @@ mod tests {
             2,
         );
         let v = named(&both.fitted);
-        let rmse = |out: &[f64]| {
-            residual::rms(
-                &data
-                    .yt
-                    .iter()
-                    .zip(out)
-                    .map(|(a, b)| a - b)
-                    .collect::<Vec<_>>(),
-            )
-        };
+        let rmse = residual::rms(&training_residual(&data.yt, &both));
         let why = format!(
             "{v:?}, peaks {peaks:?}, mode alone {:?}",
             named(&mode.fitted)
         );
-        assert!((v["delay_s"] / dt - 3.0).abs() < 1.0, "{why}");
-        assert!((v["mode_freq_hz"] / 110.0 - 1.0).abs() < 0.03, "{why}");
-        assert!(
-            rmse(&both.out_t) < 1.3 * sigma,
-            "{} {why}",
-            rmse(&both.out_t)
-        );
+        let (delay, hz, _) = truth;
+        assert!((v["delay_s"] / dt - delay as f64).abs() < 1.0, "{why}");
+        assert!((v["mode_freq_hz"] / hz - 1.0).abs() < 0.03, "{why}");
+        assert!(rmse < 1.3 * sigma, "{rmse} {why}");
     }
 
     /// The exchanges open to `fitted` with nothing fitted in earlier rounds, in round 1.

@@ -326,22 +326,36 @@ pub fn spectra(u: &[f64], e: &[f64], dt: f64, seg: usize) -> Spectra {
     }
 }
 
+/// Welch segment (samples) of the residual spectra [`locate`] and [`peak_frequencies`] read.
+const LOCATE_SEGMENT: usize = 1024;
+
+/// The residual PSD of `sp` over the floor of white noise of RMS `noise` per bin, and the
+/// ratio a bin must exceed: 2 dof per segment, so the Welch estimate's 99.9 % quantile is
+/// about 6.9/K + 1 times its mean for K segments; 4x and that. `None` with fewer than two
+/// segments or no floor.
+fn over_floor(sp: &Spectra, noise: f64, dt: f64) -> Option<(Vec<f64>, f64)> {
+    let floor = 2.0 * noise * noise * dt;
+    if sp.segments < 2 || floor <= 0.0 {
+        return None;
+    }
+    let need = 4.0f64.max(1.0 + 6.9 / sp.segments as f64 * 2.0);
+    Some((sp.psd_e.iter().map(|p| p / floor).collect(), need))
+}
+
 /// The frequencies (Hz, strongest first) where the residual's power peaks above the noise
 /// floor `noise` as [`locate`] demands (4x and the Welch quantile): local maxima at least
 /// 1.25x apart in frequency, `max` at most. A lightly damped mode leaves its resonance there,
 /// a narrow basin a search from a grid rarely enters (blind seed 20261148 case 82: a 152 Hz
 /// mode beside one at 60 Hz, both fitted near 55 Hz, while the residual peaked at 143 Hz).
 pub fn peak_frequencies(u: &[f64], e: &[f64], dt: f64, noise: f64, max: usize) -> Vec<f64> {
-    let sp = spectra(u, e, dt, 1024);
-    let floor = 2.0 * noise * noise * dt;
-    if sp.segments < 2 || floor <= 0.0 {
+    let sp = spectra(u, e, dt, LOCATE_SEGMENT);
+    let Some((ratio, need)) = over_floor(&sp, noise, dt) else {
         return Vec::new();
-    }
-    let need = 4.0f64.max(1.0 + 6.9 / sp.segments as f64 * 2.0);
-    let r = |k: usize| sp.psd_e[k] / floor;
-    let mut local: Vec<usize> = (1..sp.psd_e.len())
+    };
+    let r = |k: usize| ratio[k];
+    let mut local: Vec<usize> = (1..ratio.len())
         .filter(|&k| {
-            r(k) > need && r(k) >= r(k - 1) && sp.psd_e.get(k + 1).is_none_or(|_| r(k) >= r(k + 1))
+            r(k) > need && r(k) >= r(k - 1) && ratio.get(k + 1).is_none_or(|_| r(k) >= r(k + 1))
         })
         .collect();
     local.sort_by(|a, b| r(*b).total_cmp(&r(*a)));
@@ -591,24 +605,19 @@ pub fn locate(u: &[f64], e: &[f64], dt: f64, noise: f64, unit: &str) -> Vec<Loca
     }
 
     // Frequency: residual power above the noise floor, and coherence with the input.
-    let sp = spectra(u, e, dt, 1024);
-    let floor = 2.0 * noise * noise * dt;
-    if sp.segments >= 2 && floor > 0.0 {
-        let ratio: Vec<f64> = sp.psd_e.iter().map(|p| p / floor).collect();
+    let sp = spectra(u, e, dt, LOCATE_SEGMENT);
+    if let Some((ratio, need)) = over_floor(&sp, noise, dt) {
         if let Some((k, r)) = ratio
             .iter()
             .enumerate()
             .skip(1)
             .max_by(|a, b| a.1.total_cmp(b.1))
             .map(|(k, r)| (k, *r))
+            && r > need
         {
-            // 2 dof per segment: the Welch estimate's 99.9 % quantile is about 6.9/K + 1
-            // times its mean for K segments; demand 4x and that.
-            let need = 4.0f64.max(1.0 + 6.9 / sp.segments as f64 * 2.0);
-            if r > need {
-                let band: Vec<usize> = (1..ratio.len()).filter(|&i| ratio[i] > need).collect();
-                let (lo, hi) = (sp.freq[band[0]], sp.freq[*band.last().unwrap()]);
-                out.push(Located {
+            let band: Vec<usize> = (1..ratio.len()).filter(|&i| ratio[i] > need).collect();
+            let (lo, hi) = (sp.freq[band[0]], sp.freq[*band.last().unwrap()]);
+            out.push(Located {
                     place: "frequency".into(),
                     detail: format!(
                         "residual power up to {:.0}x the noise floor (peak at {} Hz; above {:.0}x from {} to {} Hz)",
@@ -620,7 +629,6 @@ pub fn locate(u: &[f64], e: &[f64], dt: f64, noise: f64, unit: &str) -> Vec<Loca
                     ),
                     strength: r / need,
                 });
-            }
         }
         // Coherence significance for K segments (Welch, 50 % overlap treated as K):
         // P(C > c) = (1-c)^(K-1) under independence; Bonferroni over the bins.

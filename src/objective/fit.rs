@@ -890,7 +890,7 @@ mod tests {
         n: 1.0,
         d0: 0.0,
     };
-    const TRUTH_X: [f64; 5] = [0.8, 1.0, 0.6, 0.3, 1.0];
+    const TRUTH_X: [f64; 5] = [TRUTH.d_e, TRUTH.alpha, TRUTH.beta, TRUTH.gamma, TRUTH.n];
 
     /// A record of [`TRUTH`] (accurate kernel) at 2 ms: a two-tone drive of base frequency
     /// `f` in [0.05, 0.95], simulated from rest for `skip + samples` samples of which the
