@@ -435,7 +435,14 @@ pub struct BoucWenFit {
     scheme: BoucWenScheme,
     /// Each training record prepared for the fast scheme.
     fast: Vec<FastInput>,
+    /// The validation records' refits ([`Self::refit`]) at the last point asked: metrics,
+    /// figures and the parameter table ask for the same point in turn, and a refit is some
+    /// 80 free runs of its record (a 153,000-sample record: seconds each time).
+    refits: std::sync::Mutex<RefitCache>,
 }
+
+/// A point and the refitted `(d0, h0)` of each validation set there (`None`: not asked yet).
+type RefitCache = Option<(Vec<f64>, Vec<Option<(f64, f64)>>)>;
 
 /// How the Bouc-Wen fit integrates the model (see [`crate::physics::bouc_wen_fast`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -489,6 +496,7 @@ impl BoucWenFit {
             with_d0,
             with_h0: false,
             refit: None,
+            refits: std::sync::Mutex::new(None),
             data,
             bounds,
             scheme: BoucWenScheme::Fast { substeps: 0 },
@@ -602,7 +610,7 @@ impl BoucWenFit {
         if !self.refits_validation() {
             return (params, 0.0);
         }
-        let (d0, h0) = self.refit(&params, set);
+        let (d0, h0) = self.refit_at(p, &params, set);
         (BoucWenParams { d0, ..params }, h0)
     }
 
@@ -628,6 +636,29 @@ impl BoucWenFit {
             out[at..].fill(f64::NAN);
         }
         out
+    }
+
+    /// [`Self::refit`] of validation set `set` at point `p`, computed once per point.
+    /// Trials running in parallel may ask for other points: the lock is not held while a
+    /// refit runs, and the last point asked wins the cache.
+    fn refit_at(&self, p: &[f64], params: &BoucWenParams, set: usize) -> (f64, f64) {
+        let cached = |c: &RefitCache| {
+            c.as_ref()
+                .filter(|(at, _)| at.as_slice() == p)
+                .and_then(|(_, v)| v[set])
+        };
+        if let Some(v) = cached(&self.refits.lock().expect("not poisoned")) {
+            return v;
+        }
+        let v = self.refit(params, set);
+        let mut cache = self.refits.lock().expect("not poisoned");
+        if cache.as_ref().is_none_or(|(at, _)| at.as_slice() != p) {
+            *cache = Some((p.to_vec(), vec![None; self.data.recordings.len()]));
+        }
+        if let Some((_, slots)) = cache.as_mut() {
+            slots[set] = Some(v);
+        }
+        v
     }
 
     /// Validation set `set`'s own offset and initial state `(d0, h0)` (normalised) for the
