@@ -271,6 +271,8 @@ def calibrate(case, lin, sigma):
         k, (rem, tau, rem_t), ok = bisect_log(g, target_rem, 1 / 8, 8.0)
         effects.update(scaled(effects, k))
         info["joint_factor"] = k
+        for n, e in effects.items():
+            info[n]["alone_train_signature_sigma"] = lin.remainder(*sim_effects(case, {n: e}))[2] / sigma
     else:
         rem, tau, rem_t = lin.remainder(*sim_effects(case, effects))
         ok = all(v["alone_reached"] for v in info.values())
@@ -304,6 +306,10 @@ def write_csv(path, fs, u, y):
 # training remainder below this many sigma, too little to pin its parameters; e.g. a rate-dependent gain under a triangle,
 # whose rate is constant) cannot be diagnosed from that record by any method that fits
 # the training record only: it is redrawn, as a lab would choose another excitation.
+# A pair is held to it per effect (each alone at its final size), not only jointly: one
+# effect that leaves the training record untouched is a single on that record (seeds
+# 20261142 case 92, 20261145 case 98, 20261147 case 91: a rate-dependence under smoothed
+# steps or a triangle chirp, 0 to 17 in training BIC, named by nothing).
 MIN_TRAIN_SIGNATURE = 0.5
 MAX_ATTEMPTS = 6
 
@@ -311,6 +317,7 @@ MAX_ATTEMPTS = 6
 def build_case(master, index, effects, ci=False):
     """Draw, calibrate and simulate one case; return (truth, [(u, y) train, validate])."""
     t0 = time.perf_counter()
+    best = None
     for attempt in range(MAX_ATTEMPTS):
         case = draw_case(master, index, effects, ci, attempt)
         fs, M = case["fs"], case["oversample"]
@@ -328,8 +335,17 @@ def build_case(master, index, effects, ci=False):
             achieved, tau, reached, info = calibrate(case, lin, sigma)
         else:
             achieved, tau, reached, info = 1.0, 0.0, True, {}
-        if info.get("train_signature_sigma", 1.0) >= MIN_TRAIN_SIGNATURE:
+        signatures = [info.get("train_signature_sigma", 1.0)]
+        signatures += [v["alone_train_signature_sigma"] for v in info.values()
+                       if isinstance(v, dict) and "alone_train_signature_sigma" in v]
+        drawn = (min(signatures), attempt, case, stroke, sigma, qstep, achieved, tau, reached, info)
+        if best is None or drawn[0] > best[0]:
+            best = drawn
+        if min(signatures) >= MIN_TRAIN_SIGNATURE:
             break
+    # None passed: the draw that excites its effects best (not the last).
+    _, attempt, case, stroke, sigma, qstep, achieved, tau, reached, info = best
+    fs, M = case["fs"], case["oversample"]
     clean = sim_effects(case, case["effects"])
     nrng = np.random.default_rng(case["noise_rng_seed"])
     out = []

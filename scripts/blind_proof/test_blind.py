@@ -189,6 +189,19 @@ class TestGenerator(unittest.TestCase):
             else:
                 self.assertEqual(truth["attempts"], 1)
 
+    def test_each_effect_of_a_pair_excites_the_training_record(self):
+        # Each effect alone, at its final size, recomputed from the written truth.
+        truth, _ = self.built[2]
+        case = gen.draw_case(5, 2, truth["effects"], ci=True, attempt=truth["attempts"] - 1)
+        case["consts"] = truth["consts"]
+        lin = gen.Linearised(case)
+        for n in truth["effects"]:
+            e = dict(case["effects"][n], size=truth["sizes"][n])
+            rem_train = lin.remainder(*gen.sim_effects(case, {n: e}))[2]
+            alone = truth["effect_settings"][n]["alone_train_signature_sigma"]
+            self.assertAlmostEqual(rem_train / truth["noise_sigma_mm"], alone, places=6)
+            self.assertTrue(alone >= gen.MIN_TRAIN_SIGNATURE or truth["attempts"] == gen.MAX_ATTEMPTS, n)
+
     def test_noise_and_quantisation(self):
         truth, recs = self.built[1]
         y = recs[0][1]

@@ -342,34 +342,58 @@ fn over_floor(sp: &Spectra, noise: f64, dt: f64) -> Option<(Vec<f64>, f64)> {
     Some((sp.psd_e.iter().map(|p| p / floor).collect(), need))
 }
 
-/// The frequencies (Hz, strongest first) where the residual's power peaks above the noise
-/// floor `noise` as [`locate`] demands (4x and the Welch quantile): local maxima at least
-/// 1.25x apart in frequency, `max` at most. A lightly damped mode leaves its resonance there,
-/// a narrow basin a search from a grid rarely enters (blind seed 20261148 case 82: a 152 Hz
-/// mode beside one at 60 Hz, both fitted near 55 Hz, while the residual peaked at 143 Hz).
+/// The frequencies (Hz) where the residual peaks, `max` at most, at least 1.25x apart:
+/// first where its response to the input `|S_ue/S_uu|` peaks among bins the input drives
+/// (coherence at least one half, that coherent power over the floor), strongest first;
+/// then where its power peaks above the noise floor `noise` as [`locate`] demands (4x and
+/// the Welch quantile). A lightly damped mode leaves its resonance there, a narrow basin a
+/// search from a grid rarely enters (blind seed 20261148 case 82: a 152 Hz mode beside one
+/// at 60 Hz, both fitted near 55 Hz, while the residual peaked at 143 Hz). The response
+/// comes first because a multisine's lines shape the power: on seed 20261144 case 83 the
+/// power peaked at 68 Hz and at lines near 8 Hz, the response at both modes (30, 68 Hz).
 pub fn peak_frequencies(u: &[f64], e: &[f64], dt: f64, noise: f64, max: usize) -> Vec<f64> {
     let sp = spectra(u, e, dt, LOCATE_SEGMENT);
     let Some((ratio, need)) = over_floor(&sp, noise, dt) else {
         return Vec::new();
     };
-    let r = |k: usize| ratio[k];
-    let mut local: Vec<usize> = (1..ratio.len())
-        .filter(|&k| {
-            r(k) > need && r(k) >= r(k - 1) && ratio.get(k + 1).is_none_or(|_| r(k) >= r(k + 1))
-        })
+    let driven: Vec<usize> = (1..ratio.len())
+        .filter(|&k| sp.coherence[k] >= 0.5 && ratio[k] * sp.coherence[k] > need)
         .collect();
-    local.sort_by(|a, b| r(*b).total_cmp(&r(*a)));
-    let mut out: Vec<f64> = Vec::new();
+    let mut out = Vec::new();
+    let gain: Vec<f64> = sp.response.iter().map(|r| r.norm()).collect();
+    take_maxima(&sp.freq, &gain, &driven, |_| true, max, &mut out);
+    let all: Vec<usize> = (1..ratio.len()).collect();
+    take_maxima(&sp.freq, &ratio, &all, |k| ratio[k] > need, max, &mut out);
+    out
+}
+
+/// Appends to `out` (up to `max`) the frequencies of the local maxima of `v` over the bins
+/// `bins` (ascending; neighbours are neighbours in that list) that `keep` keeps, the
+/// largest first, each at least 1.25x from every one already in `out`.
+fn take_maxima(
+    freq: &[f64],
+    v: &[f64],
+    bins: &[usize],
+    keep: impl Fn(usize) -> bool,
+    max: usize,
+    out: &mut Vec<f64>,
+) {
+    let at = |i: usize| v[bins[i]];
+    let mut local: Vec<usize> = (0..bins.len())
+        .filter(|&i| (i == 0 || at(i) >= at(i - 1)) && (i + 1 == bins.len() || at(i) >= at(i + 1)))
+        .map(|i| bins[i])
+        .filter(|&k| keep(k))
+        .collect();
+    local.sort_by(|a, b| v[*b].total_cmp(&v[*a]));
     for k in local {
-        let f = sp.freq[k];
-        if out.iter().all(|g| (f / g).max(g / f) >= 1.25) {
+        if out.len() >= max {
+            return;
+        }
+        let f = freq[k];
+        if out.iter().all(|g: &f64| (f / g).max(g / f) >= 1.25) {
             out.push(f);
         }
-        if out.len() == max {
-            break;
-        }
     }
-    out
 }
 
 /// Windows (s) tried for a start-up at the beginning of a record.
@@ -691,6 +715,7 @@ mod tests {
     }
     use crate::harness::TrialSeed;
     use crate::optimizer::operators::standard_normal;
+    use rand::RngExt;
 
     fn white(n: usize, seed: u64, sigma: f64) -> Vec<f64> {
         let mut rng = TrialSeed::from_u64(seed).rng(0);
@@ -787,6 +812,60 @@ mod tests {
             "{p:?}"
         );
         assert_eq!(peak_frequencies(&u, &e, dt, 0.01, 1).len(), 1);
+    }
+
+    /// `u` through a mode at `hz` (damping `zeta`, unit static gain), minus `u`: the
+    /// residual a plain model leaves (semi-implicit Euler on 20 sub-steps).
+    fn mode_minus_one(u: &[f64], dt: f64, hz: f64, zeta: f64) -> Vec<f64> {
+        let w = 2.0 * std::f64::consts::PI * hz;
+        let (mut y, mut v) = (0.0, 0.0);
+        let h = dt / 20.0;
+        u.iter()
+            .map(|&x| {
+                for _ in 0..20 {
+                    v += h * (w * w * (x - y) - 2.0 * zeta * w * v);
+                    y += h * v;
+                }
+                y - x
+            })
+            .collect()
+    }
+
+    #[test]
+    fn modes_are_found_by_the_response_where_the_excitation_lines_shape_the_power() {
+        // Lines every Hz to 120 Hz, ten times stronger from 50 Hz: the residual of modes
+        // at 30 and 70 Hz has more power on the lines near 85 Hz than at 30 Hz.
+        let (n, dt) = (40000, 1e-3);
+        let mut rng = TrialSeed::from_u64(5).rng(0);
+        let lines: Vec<(f64, f64, f64)> = (1..=120)
+            .map(|f| {
+                let phase = rng.random_range(0.0..std::f64::consts::TAU);
+                (f as f64, if f >= 50 { 1.0 } else { 0.1 }, phase)
+            })
+            .collect();
+        let u: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = k as f64 * dt;
+                lines
+                    .iter()
+                    .map(|&(f, a, p)| a * (2.0 * std::f64::consts::PI * f * t + p).sin())
+                    .sum()
+            })
+            .collect();
+        let (m1, m2) = (
+            mode_minus_one(&u, dt, 30.0, 0.05),
+            mode_minus_one(&u, dt, 70.0, 0.05),
+        );
+        let noise = white(n, 6, 0.01);
+        let e: Vec<f64> = (0..n).map(|k| m1[k] + m2[k] + noise[k]).collect();
+        let p = peak_frequencies(&u, &e, dt, 0.01, 2);
+        assert_eq!(p.len(), 2, "{p:?}");
+        let near = |f: f64| p.iter().any(|g| (g - f).abs() < 2.0);
+        assert!(near(30.0) && near(70.0), "{p:?}");
+        // The power alone (an input unrelated to the residual) ranks 70 Hz, then the lines
+        // near 85-95 Hz before 30 Hz.
+        let q = peak_frequencies(&white(n, 7, 1.0), &e, dt, 0.01, 2);
+        assert!((q[0] - 70.0).abs() < 2.0 && q[1] > 80.0, "{q:?}");
     }
 
     #[test]
