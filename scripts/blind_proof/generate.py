@@ -338,10 +338,10 @@ def build_case(master, index, effects, ci=False):
         signatures = [info.get("train_signature_sigma", 1.0)]
         signatures += [v["alone_train_signature_sigma"] for v in info.values()
                        if isinstance(v, dict) and "alone_train_signature_sigma" in v]
-        drawn = (min(signatures), attempt, case, stroke, sigma, qstep, achieved, tau, reached, info)
-        if best is None or drawn[0] > best[0]:
-            best = drawn
-        if min(signatures) >= MIN_TRAIN_SIGNATURE:
+        weakest = min(signatures)
+        if best is None or weakest > best[0]:
+            best = (weakest, attempt, case, stroke, sigma, qstep, achieved, tau, reached, info)
+        if weakest >= MIN_TRAIN_SIGNATURE:
             break
     # None passed: the draw that excites its effects best (not the last).
     _, attempt, case, stroke, sigma, qstep, achieved, tau, reached, info = best

@@ -642,17 +642,18 @@ pub fn locate(u: &[f64], e: &[f64], dt: f64, noise: f64, unit: &str) -> Vec<Loca
             let band: Vec<usize> = (1..ratio.len()).filter(|&i| ratio[i] > need).collect();
             let (lo, hi) = (sp.freq[band[0]], sp.freq[*band.last().unwrap()]);
             out.push(Located {
-                    place: "frequency".into(),
-                    detail: format!(
-                        "residual power up to {:.0}x the noise floor (peak at {} Hz; above {:.0}x from {} to {} Hz)",
-                        r,
-                        fmt(sp.freq[k]),
-                        need,
-                        fmt(lo),
-                        fmt(hi)
-                    ),
-                    strength: r / need,
-                });
+                place: "frequency".into(),
+                detail: format!(
+                    "residual power up to {:.0}x the noise floor (peak at {} Hz; \
+                     above {:.0}x from {} to {} Hz)",
+                    r,
+                    fmt(sp.freq[k]),
+                    need,
+                    fmt(lo),
+                    fmt(hi)
+                ),
+                strength: r / need,
+            });
         }
         // Coherence significance for K segments (Welch, 50 % overlap treated as K):
         // P(C > c) = (1-c)^(K-1) under independence; Bonferroni over the bins.
