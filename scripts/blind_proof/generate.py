@@ -126,7 +126,10 @@ def draw_case(master, index, effects, ci=False, attempt=0):
     families = [signals.FAMILIES[i] for i in fam]
     records = []
     for name, fam_name, N in zip(["train", "validate"], families, Ns):
-        st, fine, samples = signals.make_command(rng, fam_name, N, fs, M, polarity)
+        st, continuous, samples = signals.make_command(rng, fam_name, N, fs, M, polarity)
+        # The drive between samples as the case's hold makes it (a D/A staircase, a ramp,
+        # or the continuous signal).
+        fine = sim.fine_command(samples, M, hold, continuous)
         records.append({"name": name, "N": N, "excitation": st, "fine": fine, "u": samples})
     plain = {k: v * rng.uniform(0.8, 1.2) for k, v in NOMINAL_BW.items()}
     plain["d0"] = rng.uniform(-0.05, 0.05)

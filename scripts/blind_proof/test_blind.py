@@ -163,6 +163,28 @@ class TestGenerator(unittest.TestCase):
         for idx, eff in [(0, ["creep"]), (1, ["saturation"]), (2, ["dynamics", "offset-drift"]), (3, ["delay"])]:
             cls.built[idx] = gen.build_case(5, idx, eff, ci=True)
 
+    def test_the_drive_between_samples_follows_the_hold(self):
+        # The drawn hold shapes the drive the simulator sees: a staircase that jumps at
+        # the samples, a straight line between them, or the continuous signal.
+        seen = set()
+        for idx in range(12):
+            case = gen.draw_case(11, idx, ["creep"], ci=True)
+            M = case["oversample"]
+            for r in case["records"]:
+                fine, u = r["fine"], r["u"]
+                np.testing.assert_array_equal(fine[::M], u)
+                mid = fine[M // 2::M][: u.shape[0] - 1]
+                if case["hold"] == "zoh":
+                    np.testing.assert_array_equal(mid, u[:-1])
+                elif case["hold"] == "linear":
+                    np.testing.assert_allclose(mid, u[:-1] + (M // 2) / M * np.diff(u), atol=1e-12)
+                else:
+                    # the continuous signal bends between samples
+                    lin = u[:-1] + (M // 2) / M * np.diff(u)
+                    self.assertGreater(np.max(np.abs(mid - lin)), 1e-9)
+            seen.add(case["hold"])
+        self.assertEqual(seen, {"zoh", "linear", "bandlimited"})
+
     def test_calibration_hits_target(self):
         for idx, (truth, _) in self.built.items():
             if truth["target_reached"]:
