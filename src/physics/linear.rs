@@ -15,9 +15,6 @@
 //!   input sampled every `dt` its error is the interpolation error (amplitude factor
 //!   `sinc²(ω dt/2)`: 3.5 % low at 103 Hz with 1 ms, 0.01 % with 50 µs), which is why the
 //!   twin sub-steps.
-//! - [`step_hold`](Mode::step_hold), a mixture of the two as a recording's input convention
-//!   is unknown: 0 holds `x` (the staircase ending at the sample), ½ is the ramp, 1 holds
-//!   the previous input (a D/A staircase). Exact for each mixture, the block being linear.
 //! - [`step_exp`](Mode::step_exp), exponential hold (after
 //!   [`with_exp_hold(τ)`](Mode::with_exp_hold)): the input relaxes from the previous input
 //!   to `x` as `A + B e^(-t/τ)`, the output of a first-order low-pass (an amplifier) fed a
@@ -155,25 +152,6 @@ impl Mode {
         self.y
     }
 
-    /// One step with the input between samples a mixture of a staircase and a ramp
-    /// (`hold`: 0 holds `x`, ½ the ramp from the previous input, 1 holds the previous
-    /// input); returns `y` at its end. Each mixture is exact: the block is linear.
-    #[inline]
-    pub fn step_hold(&mut self, x: f64, hold: f64) -> f64 {
-        let (held, w) = hold_mixture(x, self.x_prev, hold);
-        let (y0, v0, x0) = (self.y, self.v, self.x_prev);
-        self.step(held);
-        if w < 1.0 {
-            let (ys, vs) = (self.y, self.v);
-            (self.y, self.v, self.x_prev) = (y0, v0, x0);
-            self.step_ramp(x);
-            self.y = w * ys + (1.0 - w) * self.y;
-            self.v = w * vs + (1.0 - w) * self.v;
-        }
-        self.x_prev = x;
-        self.y
-    }
-
     /// Enables [`Self::step_exp`] for inputs that relax exponentially with time constant
     /// `tau` within each step (the output of a first-order low-pass driven by a staircase,
     /// e.g. an amplifier).
@@ -211,18 +189,6 @@ impl Mode {
     /// Current output velocity (per second).
     pub fn velocity(&self) -> f64 {
         self.v
-    }
-}
-
-/// The staircase part of a [`Mode::step_hold`] mixture: `(held value, its weight)`; the
-/// rest of the weight is the ramp's.
-#[inline]
-fn hold_mixture(x: f64, x_prev: f64, hold: f64) -> (f64, f64) {
-    let h = hold.clamp(0.0, 1.0);
-    if h <= 0.5 {
-        (x, 1.0 - 2.0 * h)
-    } else {
-        (x_prev, 2.0 * h - 1.0)
     }
 }
 
@@ -288,22 +254,6 @@ impl LowPass {
     #[inline]
     pub fn step_ramp(&mut self, x: f64) -> f64 {
         self.y = self.a * self.y + (1.0 - self.c) * x + (self.c - self.a) * self.x_prev;
-        self.x_prev = x;
-        self.y
-    }
-
-    /// One step with the input a staircase-ramp mixture (see [`Mode::step_hold`]).
-    #[inline]
-    pub fn step_hold(&mut self, x: f64, hold: f64) -> f64 {
-        let (held, w) = hold_mixture(x, self.x_prev, hold);
-        let (y0, x0) = (self.y, self.x_prev);
-        self.step(held);
-        if w < 1.0 {
-            let ys = self.y;
-            (self.y, self.x_prev) = (y0, x0);
-            self.step_ramp(x);
-            self.y = w * ys + (1.0 - w) * self.y;
-        }
         self.x_prev = x;
         self.y
     }
@@ -506,67 +456,6 @@ mod tests {
             let y = coarse.step(1.0);
             assert!((y - step_response(omega, zeta, k as f64 * 1e-3)).abs() < 1e-12);
         }
-    }
-
-    /// The input over step `k` (fraction `s` in (0, 1]) for the staircase-ramp mixture
-    /// `hold`, from its definition.
-    fn mixed_input(x: &[f64], k: usize, s: f64, hold: f64) -> f64 {
-        let ramp = x[k - 1] + s * (x[k] - x[k - 1]);
-        if hold <= 0.5 {
-            (1.0 - 2.0 * hold) * x[k] + 2.0 * hold * ramp
-        } else {
-            (2.0 * hold - 1.0) * x[k - 1] + (2.0 - 2.0 * hold) * ramp
-        }
-    }
-
-    #[test]
-    fn a_staircase_ramp_mixture_is_exact_at_a_coarse_step() {
-        // A rough input (steps of every size) at 1 ms through a 103 Hz mode and a 2 ms lag,
-        // against the same input made on a grid 400 times finer (midpoint values held).
-        let x: Vec<f64> = (0..60)
-            .map(|k| (1.7 * k as f64).sin() + 0.3 * (0.21 * k as f64).cos())
-            .collect();
-        let (dt, sub) = (1e-3, 400);
-        for hold in [0.0, 0.2, 0.5, 0.8, 1.0] {
-            let (mut m, mut l) = (Mode::new(103.0, 0.04, dt), LowPass::new(2e-3, dt));
-            let (mut mf, mut lf) = (
-                Mode::new(103.0, 0.04, dt / sub as f64),
-                LowPass::new(2e-3, dt / sub as f64),
-            );
-            m.settle(x[0]);
-            l.settle(x[0]);
-            mf.settle(x[0]);
-            lf.settle(x[0]);
-            let mut worst = 0.0f64;
-            for k in 1..x.len() {
-                let (ym, yl) = (m.step_hold(x[k], hold), l.step_hold(x[k], hold));
-                for j in 0..sub {
-                    let xi = mixed_input(&x, k, (j as f64 + 0.5) / sub as f64, hold);
-                    mf.step(xi);
-                    lf.step(xi);
-                }
-                worst = worst.max((ym - mf.output()).abs().max((yl - lf.output()).abs()));
-            }
-            assert!(worst < 2e-5, "hold {hold}: {worst:e}");
-        }
-        // The ends and the middle are the three plain conventions, bit for bit.
-        let run = |f: &dyn Fn(&mut Mode, usize) -> f64| {
-            let mut m = Mode::new(103.0, 0.04, dt);
-            m.settle(x[0]);
-            (1..x.len()).map(|k| f(&mut m, k)).collect::<Vec<_>>()
-        };
-        assert_eq!(
-            run(&|m, k| m.step_hold(x[k], 0.0)),
-            run(&|m, k| m.step(x[k]))
-        );
-        assert_eq!(
-            run(&|m, k| m.step_hold(x[k], 0.5)),
-            run(&|m, k| m.step_ramp(x[k]))
-        );
-        assert_eq!(
-            run(&|m, k| m.step_hold(x[k], 1.0)),
-            run(&|m, k| m.step(x[k - 1]))
-        );
     }
 
     #[test]

@@ -31,9 +31,9 @@
 //! - `offset-drift`: `y += a1 t/T + a2 (t/T)²` (T the training duration), two more
 //!   linear coefficients.
 //!
-//! Linear blocks are the exact discretisations of [`super::linear`]: a staircase-ramp
-//! mixture (the `block_hold_samples` nuisance) after the command, exponential hold (the
-//! drive relaxes with `τ`) when `input-lag` is on, as in the twin. Unstable or absurd parameters give a finite penalty ([`cost_cap`]),
+//! Linear blocks are the exact discretisations of [`super::linear`]: zero-order hold after
+//! the command, exponential hold (the drive relaxes with `τ`) when `input-lag` is on, as
+//! in the twin. Unstable or absurd parameters give a finite penalty ([`cost_cap`]),
 //! never NaN.
 
 use super::bouc_wen::{BoucWenKernel, BoucWenParams, cost_cap};
@@ -376,9 +376,8 @@ struct Shape {
     /// (a ramp or a staircase's average), 1 the cubic through four samples (a smooth,
     /// band-limited signal).
     curvature: f64,
-    /// How the linear blocks' inputs move between samples (0: a value acts over the
-    /// interval before its sample; ½: a ramp; 1: a D/A that updates at the sample and
-    /// holds; between: mixtures).
+    /// Samples by which the linear blocks' inputs lag the samples (0: a value acts over
+    /// the interval before its sample; 1: a D/A that updates at the sample and holds).
     block_hold: f64,
     delay: f64,
     lag: f64,
@@ -764,9 +763,8 @@ impl Structure {
                 (Effect::OffsetDrift, _) => {}
             }
         }
-        // How the linear blocks' input (lag, creep, modes) moves between samples: held from
-        // the interval's end (0), a ramp (½, a linearly interpolated drive), held from its
-        // start (1, a D/A), or a mixture. A nuisance, offered only
+        // Where within its interval a sample acts on the linear blocks (lag, creep, modes):
+        // at the interval's end, or held from its start (a D/A). A nuisance, offered only
         // with such a block (the hysteresis, rate-independent, does not see it), last so a
         // new effect's own parameters lead its search.
         let linear_block = parts
@@ -1311,41 +1309,33 @@ impl Structure {
         }
         let bound = 1e6 * (1.0 + ctx.u_ref) * (1.0 + u.iter().fold(0.0f64, |m, x| m.max(x.abs())));
         let mut v_prev = v0;
-        // The hold (`block_hold`: how an input moves between samples, a staircase-ramp
-        // mixture) acts on the command into an input lag; without one, on the hysteresis
-        // output into creep and modes. After a first-order lag their inputs relax
-        // exponentially (exact); after a second-order one they are smooth (the ramp).
+        // Previous inputs of the linear blocks, for the hold (`block_hold`): the drive
+        // into the lag; without a lag, the hysteresis output into creep and modes (with a
+        // lag, their inputs are continuous and the exponential hold is exact).
         let hold = sh.block_hold.clamp(0.0, 1.0);
-        let hold_after = match (&lag, &lag2) {
-            (Some(_), _) => 0.0,
-            (None, Some(_)) => 0.5,
-            (None, None) => hold,
+        let held = |x: f64, prev: &mut f64| {
+            let r = x - hold * (x - *prev);
+            *prev = x;
+            r
         };
+        let hold_after = lag.is_none() && hold > 0.0;
+        let mut prev_u = u0;
+        let (mut prev_a0, mut prev_b0) = (v0, -g_init);
+        let (mut prev_am, mut prev_bm) = (k_dc * v0, -k_dc * g_init);
         let step_mode = |m: &mut Mode, x: f64| {
             if exp_tau.is_some() {
                 m.step_exp(x)
-            } else if hold_after > 0.0 {
-                m.step_hold(x, hold_after)
             } else {
                 m.step(x)
-            }
-        };
-        let step_lp = |l: &mut LowPass, x: f64| {
-            if exp_tau.is_some() {
-                l.step_exp(x)
-            } else if hold_after > 0.0 {
-                l.step_hold(x, hold_after)
-            } else {
-                l.step(x)
             }
         };
         for k in 0..n {
             let mut x = u[k];
             if let Some(l) = &mut lag {
-                x = l.step_hold(x, hold);
+                x = l.step(held(x, &mut prev_u));
             }
             if let Some(l) = &mut lag2 {
-                x = l.step_hold(x, hold);
+                x = l.step(x);
             }
             let v = drive(x);
             let dv = v - v_prev;
@@ -1376,10 +1366,23 @@ impl Structure {
             }
             v_prev = v;
             let (mut a, mut b) = (vv, -g);
-            let (a0, b0) = (a, b);
+            let (a0, b0) = if hold_after && !creep.is_empty() {
+                (held(a, &mut prev_a0), held(b, &mut prev_b0))
+            } else {
+                (a, b)
+            };
             for (gain, ca, cb) in &mut creep {
-                a += *gain * step_lp(ca, a0);
-                b += *gain * step_lp(cb, b0);
+                let (la, lb) = if exp_tau.is_some() {
+                    (ca.step_exp(a0), cb.step_exp(b0))
+                } else {
+                    (ca.step(a0), cb.step(b0))
+                };
+                a += *gain * la;
+                b += *gain * lb;
+            }
+            if hold_after && (mode.is_some() || mode2.is_some()) {
+                a = held(a, &mut prev_am);
+                b = held(b, &mut prev_bm);
             }
             match (&mut mode, &mut mode2) {
                 (Some((ma, mb)), Some((na, nb))) => {
@@ -2739,70 +2742,6 @@ pub(crate) mod tests {
             &u,
         );
         assert!(c.iter().zip(&d).any(|(x, y)| (x - y).abs() > 1e-6));
-    }
-
-    #[test]
-    fn a_drive_moving_straight_between_samples_is_the_middle_hold() {
-        // A rising command (so the hysteresis is exact at the samples) with a ripple at
-        // 150 Hz that moves linearly between its 1 ms samples, simulated 16 times finer:
-        // at the samples, the ramp (hold ½) matches it through a lag and through a 200 Hz
-        // mode where the staircases (0, 1) and their average (the old mixture) miss.
-        let (dt, m, n) = (1e-3, 16, 400);
-        let w = 2.0 * std::f64::consts::PI;
-        let u: Vec<f64> = (0..n)
-            .map(|k| {
-                let t = k as f64 * dt;
-                0.05 + 11.5 * t + 0.01 * (w * 150.0 * t).sin()
-            })
-            .collect();
-        let fine: Vec<f64> = (0..(n - 1) * m + 1)
-            .map(|i| {
-                let (k, f) = (i / m, (i % m) as f64 / m as f64);
-                if f == 0.0 {
-                    u[k]
-                } else {
-                    u[k] + f * (u[k + 1] - u[k])
-                }
-            })
-            .collect();
-        let coef = [0.15, 0.01, 0.05];
-        let shape = [("log10_s", -0.4), ("w", 0.6)];
-        let cases = [
-            (
-                Effect::InputLag,
-                Form::FirstOrder,
-                ("lag_log10_tau_s", (1.5e-3f64).log10()),
-            ),
-            (
-                Effect::Dynamics,
-                Form::OneMode,
-                ("mode_log10_hz", 120f64.log10()),
-            ),
-        ];
-        for (effect, form, p) in cases {
-            let at = |dt: f64, u: &[f64]| {
-                let ctx = Context::from_training(u, dt);
-                Structure::with_forms(&[(effect, form)], Some(1.0), ctx, Placement::After)
-            };
-            let (coarse, finer) = (at(dt, &u), at(dt / m as f64, &fine));
-            let run = |st: &Structure, hold: f64, u: &[f64]| {
-                let theta = theta_with(st, &[shape[0], shape[1], p, ("block_hold_samples", hold)]);
-                st.simulate(&theta, &coef, u).0
-            };
-            let want: Vec<f64> = run(&finer, 0.5, &fine).into_iter().step_by(m).collect();
-            let miss = |hold: f64| {
-                let y = run(&coarse, hold, &u);
-                y.iter()
-                    .zip(&want)
-                    .map(|(a, b)| (a - b).abs())
-                    .fold(0.0, f64::max)
-            };
-            let (ramp, end, start) = (miss(0.5), miss(0.0), miss(1.0));
-            assert!(
-                ramp < 0.01 * end.min(start),
-                "{effect:?}: ramp {ramp:e}, staircases {end:e} {start:e}"
-            );
-        }
     }
 
     #[test]
