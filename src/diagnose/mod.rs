@@ -3219,41 +3219,52 @@ mod tests {
                 .map(|&i| format!("{} {}", pool[i].name(), pool[i].form()))
                 .collect()
         };
-        let top = members(&[
-            (Effect::Creep, Form::KelvinVoigt, -133_445.0),
-            (Effect::Creep, Form::Logarithmic, -129_427.0),
-            (Effect::OffsetDrift, Form::Spline, -86_761.0),
-            (Effect::Saturation, Form::Smooth, -50_000.0),
-            (Effect::RateDependence, Form::Gain, -40_012.0),
-            (Effect::InputLag, Form::SecondOrder, -2_406.0),
-            (Effect::Delay, Form::Transport, -2_402.0),
-        ]);
-        let expected = [
-            "creep kelvin-voigt",
-            "offset-drift spline",
-            "rate-dependence gain",
-            "input-lag second-order",
+        // Singles ranked by training ΔBIC, and the members expected from them.
+        type Case<'a> = (&'a [(Effect, Form, f64)], &'a [&'a str]);
+        let cases: [Case; 3] = [
+            (
+                &[
+                    (Effect::Creep, Form::KelvinVoigt, -133_445.0),
+                    (Effect::Creep, Form::Logarithmic, -129_427.0),
+                    (Effect::OffsetDrift, Form::Spline, -86_761.0),
+                    (Effect::Saturation, Form::Smooth, -50_000.0),
+                    (Effect::RateDependence, Form::Gain, -40_012.0),
+                    (Effect::InputLag, Form::SecondOrder, -2_406.0),
+                    (Effect::Delay, Form::Transport, -2_402.0),
+                ],
+                &[
+                    "creep kelvin-voigt",
+                    "offset-drift spline",
+                    "rate-dependence gain",
+                    "input-lag second-order",
+                ],
+            ),
+            // A timing among the three: no extra, and no second timing.
+            (
+                &[
+                    (Effect::Delay, Form::Transport, -9_000.0),
+                    (Effect::InputLag, Form::FirstOrder, -8_000.0),
+                    (Effect::Creep, Form::KelvinVoigt, -7_000.0),
+                    (Effect::Asymmetry, Form::Even, -6_000.0),
+                ],
+                &[
+                    "delay transport",
+                    "creep kelvin-voigt",
+                    "asymmetry even-order",
+                ],
+            ),
+            // A timing that does not lower BIC does not join.
+            (
+                &[
+                    (Effect::Creep, Form::KelvinVoigt, -7_000.0),
+                    (Effect::Delay, Form::Transport, 4.0),
+                ],
+                &["creep kelvin-voigt"],
+            ),
         ];
-        assert_eq!(top, expected);
-        // A timing among the three: no extra, and no second timing.
-        let top = members(&[
-            (Effect::Delay, Form::Transport, -9_000.0),
-            (Effect::InputLag, Form::FirstOrder, -8_000.0),
-            (Effect::Creep, Form::KelvinVoigt, -7_000.0),
-            (Effect::Asymmetry, Form::Even, -6_000.0),
-        ]);
-        let expected = [
-            "delay transport",
-            "creep kelvin-voigt",
-            "asymmetry even-order",
-        ];
-        assert_eq!(top, expected);
-        // A timing that does not lower BIC does not join.
-        let top = members(&[
-            (Effect::Creep, Form::KelvinVoigt, -7_000.0),
-            (Effect::Delay, Form::Transport, 4.0),
-        ]);
-        assert_eq!(top, ["creep kelvin-voigt"]);
+        for (ranked, expected) in cases {
+            assert_eq!(members(ranked), expected);
+        }
     }
 
     /// A round is skipped only when a pass would need a validation RMSE below the noise: the
