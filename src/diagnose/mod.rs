@@ -954,6 +954,10 @@ fn fit_proposal(
     evaluate(f, d, opts)
 }
 
+/// Correlation of two singles' corrections to the parent's training output at which they
+/// explain one residual (for the pair members).
+const SAME_RESIDUAL: f64 = 0.95;
+
 /// The singles pairs are drawn from: the `n` best by training ΔBIC (`singles`, sorted),
 /// one form per effect, effects the parent lacks, at its placement; and the best input
 /// timing besides when none of them is one. One timing at most: two are never paired, so
@@ -963,11 +967,15 @@ fn fit_proposal(
 /// far below what it predicts (seed 20261153 case 92: a first-order lag beside
 /// Kelvin-Voigt creep, the fifth effect by training ΔBIC, -2,406 against creep's
 /// -133,445, while the validation residual creep leaves is the lag's; nothing named).
+/// A single whose correction `same` finds to be a member's (the same residual explained)
+/// gives its place to the next: on seed 20261155 case 98 a delay, a mode and an input lag
+/// explained one timing residual and the even asymmetry beside the delay was never tried.
 fn pair_members(
     pool: &[Proposal],
     singles: &[(usize, f64)],
     parent: &Structure,
     n: usize,
+    same: &dyn Fn(usize, usize) -> bool,
 ) -> Vec<usize> {
     let eligible = |i: usize, delta: f64| {
         delta < 0.0 && !parent.has(pool[i].parts[0].0) && pool[i].placement == parent.placement()
@@ -976,7 +984,8 @@ fn pair_members(
     for &(i, delta) in singles {
         let e = pool[i].parts[0].0;
         let second_timing = pool[i].is_timing() && top.iter().any(|&j| pool[j].is_timing());
-        if eligible(i, delta) && !second_timing && !top.iter().any(|&j| pool[j].parts[0].0 == e) {
+        let known = top.iter().any(|&j| pool[j].parts[0].0 == e || same(i, j));
+        if eligible(i, delta) && !second_timing && !known {
             top.push(i);
         }
         if top.len() == n {
@@ -2074,7 +2083,20 @@ pub fn diagnose_with_tests(
                 && !no_room(current.validate_rmse, 2.0 * MIN_EXPLAINED)
             {
                 singles.sort_by(|a, b| a.1.total_cmp(&b.1));
-                let top = pair_members(&pool, &singles, &parent, opts.pair_pool);
+                // Corrections to the parent's training output; one residual explained twice
+                // when they correlate this closely.
+                let correction = |i: usize| -> Vec<f64> {
+                    tried[i]
+                        .out_t
+                        .iter()
+                        .zip(&current.out_t)
+                        .map(|(a, b)| a - b)
+                        .collect()
+                };
+                let same = |a: usize, b: usize| {
+                    residual::correlation(&correction(a), &correction(b)) >= SAME_RESIDUAL
+                };
+                let top = pair_members(&pool, &singles, &parent, opts.pair_pool, &same);
                 let (proposals, pairs): (Vec<Proposal>, Vec<Option<(usize, usize)>>) =
                     pair_proposals(&pool, &top, parent.placement())
                         .into_iter()
@@ -3214,7 +3236,7 @@ mod tests {
         let members = |ranked: &[(Effect, Form, f64)]| -> Vec<String> {
             let singles: Vec<(usize, f64)> =
                 ranked.iter().map(|&(e, f, d)| (at(e, f), d)).collect();
-            pair_members(&pool, &singles, &parent, 3)
+            pair_members(&pool, &singles, &parent, 3, &|_, _| false)
                 .iter()
                 .map(|&i| format!("{} {}", pool[i].name(), pool[i].form()))
                 .collect()
@@ -3265,6 +3287,29 @@ mod tests {
         for (ranked, expected) in cases {
             assert_eq!(members(ranked), expected);
         }
+        // A single explaining a member's residual gives its place to the next (seed
+        // 20261155 case 98: delay, mode and creep held the places, the asymmetry beside
+        // the delay was never tried).
+        let ranked = [
+            (Effect::Delay, Form::Transport, -6_767.0),
+            (Effect::Dynamics, Form::OneMode, -6_747.0),
+            (Effect::Creep, Form::KelvinVoigt, -2_731.0),
+            (Effect::Asymmetry, Form::Even, -1_853.0),
+        ];
+        let singles: Vec<(usize, f64)> = ranked.iter().map(|&(e, f, d)| (at(e, f), d)).collect();
+        let (delay, mode) = (singles[0].0, singles[1].0);
+        let same = |a: usize, b: usize| [a, b] == [mode, delay] || [a, b] == [delay, mode];
+        let names = |top: Vec<usize>| -> Vec<String> {
+            top.iter().map(|&i| pool[i].name().to_string()).collect()
+        };
+        assert_eq!(
+            names(pair_members(&pool, &singles, &parent, 3, &same)),
+            ["delay", "creep", "asymmetry"]
+        );
+        assert_eq!(
+            names(pair_members(&pool, &singles, &parent, 3, &|_, _| false)),
+            ["delay", "dynamics", "creep"]
+        );
     }
 
     /// A round is skipped only when a pass would need a validation RMSE below the noise: the
