@@ -369,13 +369,13 @@ pub fn fit_from(
         // The start, and a grid over the first one or two free coordinates (the others at
         // the start): narrow basins (a lightly damped mode) are then not left to chance.
         let start: Vec<f64> = free.iter().map(|&i| best[i]).collect();
+        let hints: Vec<Vec<f64>> = from
+            .hints
+            .iter()
+            .map(|h| free.iter().map(|&i| h[i]).collect())
+            .collect();
         let mut points = vec![start.clone()];
-        points.extend(
-            from.hints
-                .iter()
-                .map(|h| free.iter().map(|&i| h[i]).collect::<Vec<f64>>())
-                .filter(|h| *h != start),
-        );
+        points.extend(hints.iter().filter(|h| **h != start).cloned());
         let cell = |j: usize, k: usize, m: usize| {
             let (lo, hi) = (obj.bounds().lower()[free[j]], obj.bounds().upper()[free[j]]);
             lo + (hi - lo) * (k as f64 + 0.5) / m as f64
@@ -431,37 +431,41 @@ pub fn fit_from(
         let gain = bic_gain(&rec, explored);
         screened_out = budget.screen > 0.0 && (gain.is_nan() || gain < budget.screen);
         let seen = std::mem::take(&mut *restricted.seen.lock().expect("not poisoned"));
-        starts = distinct_starts(seen, &rec.best_x, restricted.bounds(), budget.starts)
-            .into_iter()
-            .map(|x| {
-                let mut full = best.clone();
-                for (&i, &v) in free.iter().zip(&x) {
-                    full[i] = v;
-                }
-                full
-            })
-            .collect();
-        // Screened out, yet an earlier fit of the effect is at hand: polished from the best
-        // of those instead. Beside a new parent the remembered values can fit worse than
-        // none of the effect until the parent's own parameters move with them, which the
-        // global stage (the new effect's coordinates only) cannot do: on blind seed
-        // 20261155 case 88 a mode found alone (validation RMSE 2.8x -> 2.2x the noise) was
-        // screened out beside creep and never polished; polished, the pair is found (1.1x).
-        if screened_out && !from.hints.is_empty() {
-            let cost = |x: &Vec<f64>| obj.evaluate(x);
-            let hinted = from
-                .hints
-                .iter()
-                .map(|h| (cost(h), h))
-                .min_by(|a, b| a.0.total_cmp(&b.0))
-                .map(|(_, h)| h.clone());
-            evaluations += from.hints.len() as u64;
-            if let Some(h) = hinted {
-                keep_if_worse = Some((cost(&best), best.clone()));
-                evaluations += 1;
-                starts = vec![h];
-                screened_out = false;
+        let full = |x: &[f64]| {
+            let mut full = best.clone();
+            for (&i, &v) in free.iter().zip(x) {
+                full[i] = v;
             }
+            full
+        };
+        // Screened out, yet an earlier fit of the effect is at hand: polished from the best
+        // of those (as the global stage valued them) instead. Beside a new parent the
+        // remembered values can fit worse than none of the effect until the parent's own
+        // parameters move with them, which the global stage (the new effect's coordinates
+        // only) cannot do: on blind seed 20261155 case 88 a mode found alone (validation
+        // RMSE 2.8x -> 2.2x the noise) was screened out beside creep and never polished;
+        // polished, the pair is found (1.1x).
+        let hinted = seen
+            .iter()
+            .filter(|(_, x)| screened_out && hints.contains(x))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, x)| full(x));
+        starts = distinct_starts(seen, &rec.best_x, restricted.bounds(), budget.starts)
+            .iter()
+            .map(|x| full(x))
+            .collect();
+        if let Some(h) = hinted {
+            // The global stage's best, to keep if the polish ends above it (valued on the
+            // whole record: the global stage may have seen its first samples only).
+            let at_best = if explored == n {
+                rec.best
+            } else {
+                evaluations += 1;
+                obj.evaluate(&best)
+            };
+            keep_if_worse = Some((at_best, best.clone()));
+            starts = vec![h];
+            screened_out = false;
         }
     }
     if !best.is_empty() && !screened_out {

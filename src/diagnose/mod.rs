@@ -3232,15 +3232,17 @@ mod tests {
         );
         let pool = candidate_pool(&parent, &Options::default());
         let at = |e: Effect, f: Form| pool.iter().position(|p| p.parts == [(e, f)]).unwrap();
-        // The members (name and form) drawn from singles ranked by training ΔBIC.
-        let members = |ranked: &[(Effect, Form, f64)]| -> Vec<String> {
+        // The members (name and form) drawn from singles ranked by training ΔBIC, `same`
+        // telling which explain one residual.
+        let drawn = |ranked: &[(Effect, Form, f64)], same: &dyn Fn(usize, usize) -> bool| {
             let singles: Vec<(usize, f64)> =
                 ranked.iter().map(|&(e, f, d)| (at(e, f), d)).collect();
-            pair_members(&pool, &singles, &parent, 3, &|_, _| false)
+            pair_members(&pool, &singles, &parent, 3, same)
                 .iter()
                 .map(|&i| format!("{} {}", pool[i].name(), pool[i].form()))
-                .collect()
+                .collect::<Vec<String>>()
         };
+        let members = |ranked: &[(Effect, Form, f64)]| drawn(ranked, &|_, _| false);
         // Singles ranked by training ΔBIC, and the members expected from them.
         type Case<'a> = (&'a [(Effect, Form, f64)], &'a [&'a str]);
         let cases: [Case; 3] = [
@@ -3296,19 +3298,22 @@ mod tests {
             (Effect::Creep, Form::KelvinVoigt, -2_731.0),
             (Effect::Asymmetry, Form::Even, -1_853.0),
         ];
-        let singles: Vec<(usize, f64)> = ranked.iter().map(|&(e, f, d)| (at(e, f), d)).collect();
-        let (delay, mode) = (singles[0].0, singles[1].0);
+        let (delay, mode) = (
+            at(Effect::Delay, Form::Transport),
+            at(Effect::Dynamics, Form::OneMode),
+        );
         let same = |a: usize, b: usize| [a, b] == [mode, delay] || [a, b] == [delay, mode];
-        let names = |top: Vec<usize>| -> Vec<String> {
-            top.iter().map(|&i| pool[i].name().to_string()).collect()
-        };
         assert_eq!(
-            names(pair_members(&pool, &singles, &parent, 3, &same)),
-            ["delay", "creep", "asymmetry"]
+            drawn(&ranked, &same),
+            [
+                "delay transport",
+                "creep kelvin-voigt",
+                "asymmetry even-order"
+            ]
         );
         assert_eq!(
-            names(pair_members(&pool, &singles, &parent, 3, &|_, _| false)),
-            ["delay", "dynamics", "creep"]
+            members(&ranked),
+            ["delay transport", "dynamics one-mode", "creep kelvin-voigt"]
         );
     }
 
