@@ -2285,7 +2285,7 @@ pub fn diagnose_with_tests(
             at.push(candidates.len());
             let evidence = format!(
                 concat!(
-                    "exchange for {}: training fit {} (ΔBIC {} with the parameters) and ",
+                    "exchange for {}: training N ln SSE {} (ΔBIC {} with the parameters) and ",
                     "validation evidence {} against the model with it (each needs < {}), ",
                     "together {} (needs < -{}); ",
                     "validation RMSE {} vs band [{}, {}] {} (needs at most the top): {}"
