@@ -3,7 +3,8 @@
 //! between variants measured in this same process are printed.
 
 use criterion::{BenchmarkId, Criterion, Throughput};
-use optbench::harness::{Evaluator, TrialSeed, TrialSpec, run_trial};
+use optbench::base::TrialSeed;
+use optbench::harness::{Evaluator, TrialSpec, run_trial};
 use optbench::objective::Objective;
 use optbench::objective::functions::{Function, TestFunction};
 use optbench::optimizer::OptimizerConfig;

@@ -2,10 +2,10 @@
 """Compare two result trees written by scripts/snapshot.sh with two builds.
 
 Every file must be byte-identical except what records when and where it ran: wall times
-(`wall_s`, `started`, `finished`), the build, and paths naming the output folder. JSON and
-JSON Lines are compared with those keys left out (the progress log as a set of lines: it is
-appended in the order trials finish), CSV without its `wall_s` column; every
-other file (Markdown, LaTeX, PNG, SVG, IOH data) byte for byte.
+(`wall_s`, `started`, `finished`), the build and commit, the command line, and paths naming
+the output folder. JSON and JSON Lines are compared with those keys left out (the progress
+log as a set of lines: it is appended in the order trials finish), CSV without its `wall_s`
+column; every other file (Markdown, LaTeX, PNG, SVG, IOH data) byte for byte.
 
 usage: scripts/snapshot_compare.py BEFORE AFTER   (exit 1 on any difference)
 """
@@ -16,7 +16,7 @@ import os
 import sys
 
 # Keys that record the run, not its results.
-RUN_KEYS = {"wall_s", "started", "finished", "build", "out", "outputs", "suite_file", "fingerprint"}
+RUN_KEYS = {"wall_s", "started", "finished", "build", "git_commit", "command", "out", "outputs", "suite_file", "fingerprint"}
 
 
 def strip(v, a, b):

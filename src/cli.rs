@@ -1,6 +1,6 @@
 //! Command-line interface. Parsing and dispatch only; the work lives in the library.
 
-use crate::error::Result;
+use crate::base::error::Result;
 use crate::registry::{objective_kinds, optimizer_kinds};
 use crate::report::table::markdown;
 use clap::{Parser, Subcommand};
@@ -384,33 +384,34 @@ fn run(args: RunArgs) -> Result<()> {
 /// The text of `optbench list`.
 pub fn list() -> String {
     let mut s = String::new();
-    let section =
-        |s: &mut String, title: &str, name: &str, help: &str, params: &[crate::params::Spec]| {
-            s.push_str(&format!("{title} `{name}`: {help}\n"));
-            let rows: Vec<Vec<String>> = params
-                .iter()
-                .map(|p| {
-                    vec![
-                        p.name.to_string(),
-                        p.kind.to_string(),
-                        p.default.to_string(),
-                        p.help.to_string(),
-                    ]
-                })
-                .collect();
-            if rows.is_empty() {
-                s.push_str("  (no parameters)\n\n");
-            } else {
-                for line in
-                    markdown(&["parameter", "type", "default", "meaning"], &rows, &[]).lines()
-                {
-                    s.push_str("  ");
-                    s.push_str(line);
-                    s.push('\n');
-                }
+    let section = |s: &mut String,
+                   title: &str,
+                   name: &str,
+                   help: &str,
+                   params: &[crate::base::params::Spec]| {
+        s.push_str(&format!("{title} `{name}`: {help}\n"));
+        let rows: Vec<Vec<String>> = params
+            .iter()
+            .map(|p| {
+                vec![
+                    p.name.to_string(),
+                    p.kind.to_string(),
+                    p.default.to_string(),
+                    p.help.to_string(),
+                ]
+            })
+            .collect();
+        if rows.is_empty() {
+            s.push_str("  (no parameters)\n\n");
+        } else {
+            for line in markdown(&["parameter", "type", "default", "meaning"], &rows, &[]).lines() {
+                s.push_str("  ");
+                s.push_str(line);
                 s.push('\n');
             }
-        };
+            s.push('\n');
+        }
+    };
     s.push_str(
         "OBJECTIVES ([[objective]] kind = ...; also id, budget, targets, stop_at, optimizers)\n\n",
     );

@@ -6,13 +6,14 @@
 //! Flags become the same parameter tables as suites use (`optbench list`), so checks and
 //! messages are the same.
 
-use crate::error::{Error, Result};
-use crate::harness::{TrialRecord, TrialSeed, TrialSpec, run_trial};
+use crate::base::TrialSeed;
+use crate::base::atomic_write;
+use crate::base::error::{Error, Result};
+use crate::base::params::{Origin, Params};
+use crate::harness::{TrialRecord, TrialSpec, run_trial};
 use crate::objective::Objective;
-use crate::params::{Origin, Params};
 use crate::registry::{objective_kinds, optimizer_kinds};
 use crate::report::{plots, table::sig};
-use crate::results::atomic_write;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -6,23 +6,23 @@
 //!
 //! - [`objective`]: the black-box [`objective::Objective`] trait and the test functions.
 //! - [`optimizer`]: optimizers (GA, PSO, MSGA, random search) that only see an evaluator.
-//! - [`harness`]: the evaluator (the one place evaluations are counted), seeding, trials.
+//! - [`base`]: the ground floor: seeds and random streams, the stable hash, atomic writes,
+//!   errors, parameter tables. It imports nothing of the project.
+//! - [`harness`]: the evaluator (the one place evaluations are counted) and the trial loop.
 //! - [`suite`]: TOML suites, parameter validation, the plan of trials.
 //! - [`results`]: the result store (traces, summary, provenance), written atomically.
 //! - [`scale`]: resume after a crash, shards and their merge, MPI ranks (feature `mpi`).
 //! - [`report`]: what is printed and rendered from stored results.
-//! - [`params`]: declarative parameter specifications shared by objectives and optimizers.
 //! - [`control`]: hysteresis compensation in closed loop (IMC with RBF networks, PID).
 
+pub mod base;
 pub mod cli;
 pub mod control;
 pub mod diagnose;
-pub mod error;
 pub mod fitting;
 pub mod harness;
 pub mod objective;
 pub mod optimizer;
-pub mod params;
 pub mod physics;
 pub mod recording;
 pub mod registry;
@@ -36,4 +36,4 @@ pub mod speed;
 pub mod stats;
 pub mod suite;
 
-pub use error::{Error, Result};
+pub use base::error::{Error, Result};

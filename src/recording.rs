@@ -1,8 +1,8 @@
 //! Sampled input/output records: what an actuator experiment (or the twin) produces and what
 //! the fitting objectives consume.
 
-use crate::error::{Error, Result};
-use crate::results::atomic::atomic_write;
+use crate::base::atomic_write;
+use crate::base::error::{Error, Result};
 use std::path::{Path, PathBuf};
 
 /// A uniformly sampled single-input single-output record.
@@ -1044,7 +1044,7 @@ mod tests {
         assert!(r.trim_start(-1.0).is_err());
         assert!(r.trim_start(f64::NAN).is_err());
     }
-    use crate::harness::TrialSeed;
+    use crate::base::TrialSeed;
     use rand::RngExt;
 
     fn cols(spec: &str) -> Columns {

@@ -1,6 +1,7 @@
 //! The objective and optimizer kinds a suite may name, with their parameter tables.
 
-use crate::error::Error;
+use crate::base::error::Error;
+use crate::base::params::{Default as D, Kind, Params, Spec, probability};
 use crate::objective::fit::{BoucWenFit, BoucWenScheme, RbfFit};
 use crate::objective::functions::{Function, TestFunction};
 use crate::objective::source::{SimOptions, Source};
@@ -13,7 +14,6 @@ use crate::optimizer::nelder_mead::NelderMeadConfig;
 use crate::optimizer::operators::Mutation;
 use crate::optimizer::pso::PsoConfig;
 use crate::optimizer::random_search::RandomSearchConfig;
-use crate::params::{Default as D, Kind, Params, Spec, probability};
 use crate::physics::rbf::{Mode, Narx, RbfNet};
 use crate::recording::{Delimiter, ReadOptions, Recording};
 use std::path::Path;

@@ -1,7 +1,7 @@
 //! Runs a suite's plan: every trial in parallel on a rayon pool, results in plan order, so
 //! the output does not depend on the number of threads.
 
-use crate::error::{Error, Result};
+use crate::base::error::{Error, Result};
 use crate::harness::{TrialRecord, TrialSpec, run_trial};
 use crate::suite::{PlannedTrial, Suite};
 use indicatif::{ProgressBar, ProgressStyle};

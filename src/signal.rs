@@ -37,8 +37,8 @@
 //! `-1*(triangle:freq=1 + 0.5)`. Spaces around tokens are ignored. There is no binary `-`:
 //! write `+ -2` or `-1*(...)`.
 
-use crate::error::{Error, Result};
-use crate::harness::TrialSeed;
+use crate::base::TrialSeed;
+use crate::base::error::{Error, Result};
 use rand::RngExt;
 use std::f64::consts::TAU;
 use std::fmt;

@@ -1,7 +1,7 @@
 //! `optbench simulate`: recordings of the piezo twin, by default the seed's experiments
 //! (sinusoids at 1, 4, 10, 20 and 28 Hz and the validation signal of Fig. 3.27(b)).
 
-use crate::error::{Error, Result};
+use crate::base::error::{Error, Result};
 use crate::objective::source::{SimOptions, Source};
 use crate::recording::Columns;
 use crate::signal::seed_experiments;

@@ -6,7 +6,8 @@
 //! thread's rate). The fixtures are shared with the criterion benches (`benches/models.rs`),
 //! which give the detailed view.
 
-use crate::harness::{Evaluator, TrialSeed, TrialSpec, run_trial};
+use crate::base::TrialSeed;
+use crate::harness::{Evaluator, TrialSpec, run_trial};
 use crate::objective::fit::BoucWenFit;
 use crate::objective::functions::{Function, TestFunction};
 use crate::objective::{Bounds, Objective};

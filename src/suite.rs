@@ -28,11 +28,11 @@
 //! Errors are measured to the objective's known optimum, or to 0 where none is known (cost
 //! functions), so `targets` and `stop_at` mean the same thing for both.
 
-use crate::error::{Error, Result};
-use crate::harness::TrialSeed;
+use crate::base::TrialSeed;
+use crate::base::error::{Error, Result};
+use crate::base::params::{Origin, Params};
 use crate::objective::Objective;
 use crate::optimizer::OptimizerConfig;
-use crate::params::{Origin, Params};
 use crate::registry::{objective_kinds, optimizer_kinds};
 use serde::Deserialize;
 use std::collections::{BTreeMap, BTreeSet};

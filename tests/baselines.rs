@@ -5,7 +5,8 @@
 mod common;
 
 use common::{Probe, without_time};
-use optbench::harness::{TrialRecord, TrialSeed, TrialSpec, run_trial};
+use optbench::base::TrialSeed;
+use optbench::harness::{TrialRecord, TrialSpec, run_trial};
 use optbench::objective::Objective;
 use optbench::objective::functions::TestFunction;
 use optbench::optimizer::OptimizerConfig;

@@ -4,7 +4,8 @@
 mod common;
 
 use common::{code_and_stderr, lab_csv, optbench, read_json, run_shipped_suite};
-use optbench::harness::{TrialSeed, TrialSpec, run_trial};
+use optbench::base::TrialSeed;
+use optbench::harness::{TrialSpec, run_trial};
 use optbench::objective::Objective;
 use optbench::objective::fit::{BoucWenFit, RbfFit};
 use optbench::objective::source::{SimOptions, Source};

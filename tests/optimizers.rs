@@ -4,7 +4,8 @@
 mod common;
 
 use common::{Probe, without_time};
-use optbench::harness::{TrialSeed, TrialSpec, run_trial};
+use optbench::base::TrialSeed;
+use optbench::harness::{TrialSpec, run_trial};
 use optbench::objective::Objective;
 use optbench::objective::functions::TestFunction;
 use optbench::optimizer::OptimizerConfig;

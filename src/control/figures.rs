@@ -5,7 +5,7 @@
 //! did, and the transient on its own.
 
 use super::closed_loop::LoopRun;
-use crate::error::Result;
+use crate::base::error::Result;
 use crate::report::plots;
 use std::path::Path;
 

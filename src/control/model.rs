@@ -2,8 +2,9 @@
 //! fitted by PSO to a twin recording through the ordinary fitting objective
 //! ([`RbfFit`]) and the harness ([`run_trial`]), then run in parallel with the plant.
 
-use crate::error::{Error, Result};
-use crate::harness::{TrialRecord, TrialSeed, TrialSpec, run_trial};
+use crate::base::TrialSeed;
+use crate::base::error::{Error, Result};
+use crate::harness::{TrialRecord, TrialSpec, run_trial};
 use crate::objective::Objective;
 use crate::objective::fit::{FitData, FitView, RbfFit};
 use crate::objective::source::{SimOptions, Source};

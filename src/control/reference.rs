@@ -2,7 +2,7 @@
 //! rises with time (§4.2: 1 -> 2, 1 -> 3, 1 -> 4 and 1 -> 10 Hz), or any signal of the
 //! signal library ([`crate::signal`]).
 
-use crate::error::{Error, Result};
+use crate::base::error::{Error, Result};
 use crate::signal::{ChirpLaw, Signal};
 use std::f64::consts::FRAC_PI_2;
 

@@ -7,8 +7,8 @@ use super::model::{FittedModel, ModelFitConfig, Sensitivity};
 use super::network::NetConfig;
 use super::pid::PidGains;
 use super::reference::Reference;
-use crate::error::{Error, Result};
-use crate::harness::TrialSeed;
+use crate::base::TrialSeed;
+use crate::base::error::{Error, Result};
 use crate::physics::twin::{Twin, TwinConfig};
 use serde::{Deserialize, Serialize};
 

@@ -3,7 +3,7 @@
 //! code.)
 
 use super::*;
-use crate::harness::TrialSeed;
+use crate::base::TrialSeed;
 use crate::physics::rbf::{Narx, RbfNet};
 
 const DT: f64 = 1e-3;

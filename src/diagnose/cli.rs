@@ -2,11 +2,11 @@
 //! names the subcommand).
 
 use super::{Options, TestSet, coupling, diagnose_with_tests, proof, report};
-use crate::error::{Error, Result};
+use crate::base::atomic_write;
+use crate::base::error::{Error, Result};
 use crate::objective::source::{read_noting, resolve_path};
 use crate::physics::structure::{Effect, Hold};
 use crate::recording::{Columns, Delimiter, ReadOptions, Recording, header_names, unit_from_name};
-use crate::results::atomic_write;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]

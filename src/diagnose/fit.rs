@@ -4,7 +4,8 @@
 //! coefficients are solved by least squares inside each evaluation (variable projection:
 //! the polish's Jacobian is that of the projected residuals).
 
-use crate::harness::{TrialRecord, TrialSeed, TrialSpec, run_trial};
+use crate::base::TrialSeed;
+use crate::harness::{TrialRecord, TrialSpec, run_trial};
 use crate::objective::{Bounds, Objective};
 use crate::optimizer::levenberg_marquardt::LevenbergMarquardtFrom;
 use crate::optimizer::nelder_mead::NelderMead;

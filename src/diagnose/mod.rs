@@ -38,9 +38,9 @@ pub mod residual;
 pub mod suggest;
 pub mod tie;
 
-use crate::error::{Error, Result};
-use crate::harness::TrialSeed;
-use crate::optimizer::operators::standard_normal;
+use crate::base::TrialSeed;
+use crate::base::error::{Error, Result};
+use crate::base::standard_normal;
 use crate::physics::structure::{
     Context, Effect, Form, Hold, MAX_RECORDS, ParamSpec, Placement, Structure,
 };

@@ -16,9 +16,9 @@
 //! span 0.05-4.65 V (0-70 V of drive, the seed's range).
 
 use super::{Diagnosis, Options, diagnose};
-use crate::error::Result;
-use crate::harness::TrialSeed;
-use crate::optimizer::operators::standard_normal;
+use crate::base::TrialSeed;
+use crate::base::error::Result;
+use crate::base::standard_normal;
 use crate::physics::structure::{Context, Effect, Structure};
 use crate::physics::twin::{self, TwinConfig};
 use crate::recording::Recording;

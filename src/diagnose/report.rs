@@ -1,10 +1,10 @@
 //! What a diagnosis shows: a short text, `diagnosis.json` and the figures.
 
 use super::{Diagnosis, residual};
-use crate::error::{Error, Result};
+use crate::base::atomic_write;
+use crate::base::error::{Error, Result};
 use crate::report::plots;
 use crate::report::table::sig;
-use crate::results::atomic_write;
 use std::fmt::Write as _;
 use std::path::Path;
 

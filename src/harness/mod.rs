@@ -2,9 +2,7 @@
 //! ([`Evaluator`]), random streams ([`TrialSeed`]), and the trial loop ([`run_trial`]).
 
 pub mod evaluator;
-pub mod seed;
 pub mod trial;
 
 pub use evaluator::{Evaluated, Evaluator, Grant, Stall, Trace};
-pub use seed::TrialSeed;
 pub use trial::{TrialRecord, TrialSpec, run_trial};

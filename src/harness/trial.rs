@@ -1,6 +1,7 @@
 //! One trial: an optimizer against an objective for a budget, from one seed.
 
-use super::{Evaluator, Stall, TrialSeed};
+use super::{Evaluator, Stall};
+use crate::base::TrialSeed;
 use crate::objective::Objective;
 use crate::optimizer::OptimizerConfig;
 use serde::{Deserialize, Deserializer, Serialize};

@@ -7,7 +7,7 @@
 //! reports present them as RMSE in the recording's units.
 
 use super::{Bounds, Metric, Objective, Presentation, PresentationKind};
-use crate::error::{Error, Result};
+use crate::base::error::{Error, Result};
 use crate::physics::bouc_wen::{self, BoucWenParams, SimStatus};
 use crate::physics::bouc_wen_fast::{self, FastInput};
 use crate::physics::rbf::{self, Mode, Narx, RbfNet, Regressors};
@@ -947,7 +947,7 @@ mod tests {
         let mut y = vec![0.0; u.len()];
         assert_eq!(bouc_wen::simulate(&TRUTH, &u, &mut y), SimStatus::Ok);
         let h0 = TRUTH.d_e * u[skip] - y[skip];
-        let mut rng = crate::harness::TrialSeed::from_u64(seed).rng(0);
+        let mut rng = crate::base::TrialSeed::from_u64(seed).rng(0);
         let y: Vec<f64> = y[skip..]
             .iter()
             .map(|v| v + d0 + noise * (2.0 * rng.random::<f64>() - 1.0))
@@ -968,7 +968,7 @@ mod tests {
             budget,
             stop_value: None,
             stall: None,
-            seed: crate::harness::TrialSeed::from_u64(5),
+            seed: crate::base::TrialSeed::from_u64(5),
         });
         (rec.best_x, rec.best, obj)
     }
@@ -1245,7 +1245,7 @@ mod tests {
         };
         let fit = net(Mode::OneStepAhead);
         assert!(fit.has_gradient());
-        let mut rng = crate::harness::TrialSeed::from_u64(9).rng(0);
+        let mut rng = crate::base::TrialSeed::from_u64(9).rng(0);
         let mut p = vec![0.0; 35];
         fit.bounds().sample(&mut rng, &mut p);
         let mut g = vec![0.0; 35];

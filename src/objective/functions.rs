@@ -333,7 +333,7 @@ mod tests {
 
     #[test]
     fn gradients_match_finite_differences() {
-        let mut rng = crate::harness::TrialSeed::from_u64(4).rng(0);
+        let mut rng = crate::base::TrialSeed::from_u64(4).rng(0);
         for kind in TestFunction::ALL {
             let f = Function::standard(kind, 5).unwrap();
             for _ in 0..20 {

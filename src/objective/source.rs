@@ -8,7 +8,7 @@
 //!   from a fixed noise seed, so a suite regenerates the same recording every time;
 //! - `eq318:<signal>`: the seed's numerical identification example (eq. 3.18).
 
-use crate::error::{Error, Result};
+use crate::base::error::{Error, Result};
 use crate::physics::rbf;
 use crate::physics::twin::{self, TwinConfig};
 use crate::recording::{Columns, ReadOptions, Recording, data_dir};

@@ -18,9 +18,10 @@
 //! number above 1e14, or non-finite state. The symmetric eigendecomposition of C comes from
 //! nalgebra and is refreshed lazily (every lambda / (c1 + c_mu) / d / 10 generations).
 
-use super::operators::standard_normal;
 use super::{Optimizer, OptimizerConfig};
-use crate::harness::{Evaluator, TrialSeed};
+use crate::base::TrialSeed;
+use crate::base::standard_normal;
+use crate::harness::Evaluator;
 use crate::objective::Bounds;
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use rand_chacha::ChaCha8Rng;

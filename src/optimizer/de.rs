@@ -9,9 +9,10 @@
 //! SHADE), so every point evaluated lies inside the box and the search can still approach a
 //! bound. Every random number comes from the trial's stream 0, drawn in a fixed order.
 
-use super::operators::standard_normal;
 use super::{Optimizer, OptimizerConfig};
-use crate::harness::{Evaluator, TrialSeed};
+use crate::base::TrialSeed;
+use crate::base::standard_normal;
+use crate::harness::Evaluator;
 use crate::objective::Bounds;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;

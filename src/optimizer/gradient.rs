@@ -9,7 +9,8 @@
 //! a baseline should be a fair one.
 
 use super::{Optimizer, OptimizerConfig};
-use crate::harness::{Evaluator, TrialSeed};
+use crate::base::TrialSeed;
+use crate::harness::Evaluator;
 use crate::objective::Bounds;
 
 /// Settings of the gradient-descent (BP) baseline.

@@ -18,7 +18,8 @@
 //! run spends its whole budget as multistart L-BFGS; the evaluator keeps the best point.
 
 use super::{Optimizer, OptimizerConfig, dot};
-use crate::harness::{Evaluator, TrialSeed};
+use crate::base::TrialSeed;
+use crate::harness::Evaluator;
 use crate::objective::Bounds;
 use rand_chacha::ChaCha8Rng;
 use std::collections::VecDeque;

@@ -10,7 +10,8 @@
 //! [`Objective::residuals`]: crate::objective::Objective::residuals
 
 use super::{Optimizer, OptimizerConfig, dot};
-use crate::harness::{Evaluator, TrialSeed};
+use crate::base::TrialSeed;
+use crate::harness::Evaluator;
 use crate::objective::Bounds;
 
 /// Forward-difference step, as a fraction of each interval's width.

@@ -14,7 +14,8 @@ pub mod operators;
 pub mod pso;
 pub mod random_search;
 
-use crate::harness::{Evaluator, TrialSeed};
+use crate::base::TrialSeed;
+use crate::harness::Evaluator;
 use crate::objective::Bounds;
 use std::fmt;
 

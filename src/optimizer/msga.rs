@@ -51,7 +51,8 @@
 
 use super::operators::{Mutation, Roulette, arithmetic_crossover, ranking};
 use super::{Optimizer, OptimizerConfig};
-use crate::harness::{Evaluated, Evaluator, Grant, TrialSeed};
+use crate::base::TrialSeed;
+use crate::harness::{Evaluated, Evaluator, Grant};
 use crate::objective::Bounds;
 use crossbeam_channel::{Receiver, Sender, unbounded};
 use rand::RngExt;

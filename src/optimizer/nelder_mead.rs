@@ -7,7 +7,8 @@
 //! below 1e-12 relative) it restarts around its best point, so the method never stalls.
 
 use super::{Optimizer, OptimizerConfig};
-use crate::harness::{Evaluator, TrialSeed};
+use crate::base::TrialSeed;
+use crate::harness::Evaluator;
 use crate::objective::Bounds;
 
 /// Nelder-Mead settings.

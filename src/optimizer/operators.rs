@@ -1,5 +1,6 @@
 //! Variation and selection operators shared by GA and MSGA.
 
+use crate::base::standard_normal;
 use crate::objective::Bounds;
 use rand::{Rng, RngExt};
 
@@ -91,14 +92,6 @@ impl Mutation {
     }
 }
 
-/// A standard normal draw (Box-Muller; one of the pair is discarded to keep the stream
-/// position independent of call history).
-pub fn standard_normal(rng: &mut impl Rng) -> f64 {
-    let u1: f64 = 1.0 - rng.random::<f64>(); // (0, 1]
-    let u2: f64 = rng.random();
-    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-}
-
 /// Arithmetic crossover (seed eq. 3.6): `c1 = a p1 + (1 - a) p2`, `c2 = (1 - a) p1 + a p2`.
 /// A convex combination, so children of in-bounds parents are in bounds.
 pub fn arithmetic_crossover(a: f64, p1: &[f64], p2: &[f64], c1: &mut [f64], c2: &mut [f64]) {
@@ -119,7 +112,7 @@ pub fn ranking(f: &[f64]) -> Vec<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::harness::TrialSeed;
+    use crate::base::TrialSeed;
 
     #[test]
     fn roulette_favours_low_values_and_keeps_the_worst_alive() {

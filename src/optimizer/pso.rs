@@ -6,7 +6,8 @@
 //! ("absorbing walls").
 
 use super::{Optimizer, OptimizerConfig};
-use crate::harness::{Evaluator, TrialSeed};
+use crate::base::TrialSeed;
+use crate::harness::Evaluator;
 use crate::objective::Bounds;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;

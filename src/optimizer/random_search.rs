@@ -1,7 +1,8 @@
 //! Uniform random search: the floor every method must beat.
 
 use super::{Optimizer, OptimizerConfig};
-use crate::harness::{Evaluator, TrialSeed};
+use crate::base::TrialSeed;
+use crate::harness::Evaluator;
 use crate::objective::Bounds;
 use rand_chacha::ChaCha8Rng;
 

@@ -62,9 +62,9 @@ use serde::{Deserialize, Serialize};
 
 use super::bouc_wen::{BoucWenKernel, BoucWenParams, BoucWenState};
 use super::linear::{CreepChain, Delay, LowPass, Mode};
-use crate::error::{Error, Result};
-use crate::harness::seed::TrialSeed;
-use crate::optimizer::operators::standard_normal;
+use crate::base::TrialSeed;
+use crate::base::error::{Error, Result};
+use crate::base::standard_normal;
 use crate::recording::Recording;
 
 /// Drive amplifier (seed: NF As-904). The gain always applies; `enabled` switches its

@@ -2,12 +2,12 @@
 //! L-BFGS), kept apart from the seed's optimizers in `registry.rs`.
 
 use super::OptimizerKind;
-use crate::error::Error;
+use crate::base::error::Error;
+use crate::base::params::{Default as D, Kind, Params, Spec, probability};
 use crate::optimizer::OptimizerConfig;
 use crate::optimizer::cmaes::CmaesConfig;
 use crate::optimizer::de::{DeConfig, ShadeConfig};
 use crate::optimizer::lbfgs::{GradientSource, LbfgsConfig};
-use crate::params::{Default as D, Kind, Params, Spec, probability};
 use std::sync::Arc;
 
 const DE_POPULATION: Spec = Spec {

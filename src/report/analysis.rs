@@ -9,7 +9,8 @@
 //! "Error" is the final value minus the known optimum (clipped at 0 against rounding in
 //! the optimum), or the value itself where no optimum is known (fitting costs).
 
-use crate::harness::{TrialRecord, TrialSeed};
+use crate::base::TrialSeed;
+use crate::harness::TrialRecord;
 use crate::objective::Metric;
 use crate::stats::{
     Describe, Ert, Friedman, RunToTarget, a12, bootstrap_median_ci, describe, ert, friedman, holm,

@@ -7,7 +7,7 @@
 //! name, before anything is drawn. [`register`] does that once per process; every public
 //! plotting function calls it first.
 
-use crate::error::{Error, Result};
+use crate::base::error::{Error, Result};
 use plotters::style::{FontStyle, register_font};
 use std::sync::OnceLock;
 

@@ -18,9 +18,9 @@
 //! the trial's last evaluation as IOHanalyzer requires. Values are raw objective values;
 //! the comment line gives the known optimum where there is one.
 
-use crate::error::{Error, Result};
+use crate::base::atomic_write;
+use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
-use crate::results::atomic_write;
 use std::fmt::Write;
 use std::path::Path;
 

@@ -10,9 +10,10 @@ pub mod table;
 
 mod font;
 
-use crate::error::{Error, Result};
+use crate::base::atomic_write;
+use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
-use crate::results::{Provenance, atomic_write, read_traces};
+use crate::results::{Provenance, read_traces};
 use crate::stats::{a12, describe, holm, mann_whitney};
 use crate::suite::Suite;
 use analysis::{Analysis, ObjectiveInfo, analyse, error_of};

@@ -25,9 +25,9 @@
 //! figure and is documented on each function.
 
 use super::font::{self, FAMILY};
-use crate::error::{Error, Result};
+use crate::base::atomic_write;
+use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
-use crate::results::atomic_write;
 use crate::stats::quantile_sorted;
 use plotters::chart::SeriesAnno;
 use plotters::coord::Shift;

@@ -11,11 +11,9 @@
 //!   progress.jsonl    every finished trial, appended as it ends (resume, shards, merge)
 //! ```
 
-pub mod atomic;
 pub mod progress;
 pub mod store;
 pub mod summary;
 
-pub use atomic::atomic_write;
 pub use store::{Provenance, read_traces, write_run};
 pub use summary::{CellSummary, Summary, summarize};

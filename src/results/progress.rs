@@ -8,7 +8,7 @@
 //! cuts off before appending. Lines are not fsynced one by one: the log survives a killed
 //! process, not a power cut in the last seconds.
 
-use crate::error::{Error, Result};
+use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
 use serde::{Deserialize, Serialize};
 use std::fs::{File, OpenOptions};
@@ -150,7 +150,7 @@ impl ProgressLog {
             serde_json::to_writer(&mut bytes, l).expect("serialisable");
             bytes.push(b'\n');
         }
-        super::atomic_write(&path, &bytes)?;
+        crate::base::atomic_write(&path, &bytes)?;
         Self::open(path)
     }
 

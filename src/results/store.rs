@@ -1,8 +1,8 @@
 //! Writing and reading a results folder.
 
-use super::atomic_write;
 use super::summary::{Summary, summarize};
-use crate::error::{Error, Result};
+use crate::base::atomic_write;
+use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
 use crate::suite::Suite;
 use serde::{Deserialize, Serialize};

@@ -17,31 +17,17 @@
 #[cfg(feature = "mpi")]
 pub mod mpi;
 
-use crate::error::{Error, Result};
+use crate::base::atomic_write;
+use crate::base::error::{Error, Result};
+use crate::base::hash::stable_hash;
 use crate::harness::TrialRecord;
 use crate::results::progress::{FORMAT, ProgressHeader, ProgressLine, ProgressLog, read_progress};
-use crate::results::{Provenance, atomic_write, write_run};
+use crate::results::{Provenance, write_run};
 use crate::runner::{RunOptions, run_trials};
 use crate::suite::{PlannedTrial, Suite};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
-
-/// A 128-bit FNV-1a hash (two 64-bit lanes with different offsets) of `parts`, each
-/// terminated by 0xFF, as hex. Fixed forever: keys name stored trials.
-pub fn stable_hash(parts: &[&[u8]]) -> String {
-    const PRIME: u64 = 0x0000_0100_0000_01b3;
-    let mut lanes = [0xcbf2_9ce4_8422_2325u64, 0x6c62_272e_07bb_0142u64];
-    for part in parts {
-        for &b in part.iter().chain(&[0xffu8]) {
-            for (k, h) in lanes.iter_mut().enumerate() {
-                *h ^= u64::from(b) ^ ((k as u64) << 8);
-                *h = h.wrapping_mul(PRIME);
-            }
-        }
-    }
-    format!("{:016x}{:016x}", lanes[0], lanes[1])
-}
 
 /// The build that runs: version and git commit.
 pub fn build_id() -> String {
@@ -571,17 +557,6 @@ pub fn merge(dirs: &[PathBuf], out: &Path, quiet: bool) -> Result<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn hash_is_frozen_and_separates_parts() {
-        // Keys name stored trials: a change here orphans every stored result.
-        assert_eq!(stable_hash(&[b"a", b"b"]), stable_hash(&[b"a", b"b"]));
-        assert_ne!(stable_hash(&[b"ab", b""]), stable_hash(&[b"a", b"b"]));
-        assert_eq!(stable_hash(&[b"optbench"]), GOLDEN);
-    }
-
-    // Cross-checked with an independent Python implementation of the same loop.
-    const GOLDEN: &str = "6ca367c9fd1f48cd7a7f76c0cf8266f8";
 
     #[test]
     fn shards_partition_the_plan() {

@@ -14,7 +14,7 @@
 //! readable at the same path on every node.
 
 use super::{RunRequest, finish, open_log, prepare, run_local};
-use crate::error::{Error, Result};
+use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
 use crate::runner::run_planned;
 use ::mpi::Threading;

@@ -52,7 +52,7 @@ pub fn bootstrap_median_ci(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::harness::TrialSeed;
+    use crate::base::TrialSeed;
 
     /// Empirical coverage of nominal 95% intervals for the median ln 2 of Exp(1), n = 30.
     ///

@@ -4,24 +4,14 @@
 //! uses a fixed hash (FNV-1a, then SplitMix64), never `std`'s unstable `Hasher`, so a seed
 //! means the same bytes on every platform and release.
 
-use rand::SeedableRng;
+use super::hash::{FNV_OFFSET, fnv1a};
+use rand::{Rng, RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// The random-number key of one trial.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct TrialSeed {
     key: [u8; 32],
-}
-
-const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
-const FNV_PRIME: u64 = 0x0000_0100_0000_01b3;
-
-fn fnv1a(mut h: u64, bytes: &[u8]) -> u64 {
-    for &b in bytes {
-        h ^= u64::from(b);
-        h = h.wrapping_mul(FNV_PRIME);
-    }
-    h
 }
 
 /// SplitMix64 step: advances `state` and returns a well-mixed output.
@@ -68,6 +58,14 @@ impl TrialSeed {
     pub fn hex(&self) -> String {
         self.key.iter().map(|b| format!("{b:02x}")).collect()
     }
+}
+
+/// A standard normal draw (Box-Muller; one of the pair is discarded to keep the stream
+/// position independent of call history).
+pub fn standard_normal(rng: &mut impl Rng) -> f64 {
+    let u1: f64 = 1.0 - rng.random::<f64>(); // (0, 1]
+    let u2: f64 = rng.random();
+    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
 }
 
 #[cfg(test)]

@@ -1,6 +1,6 @@
 //! Write-then-rename, so files are either the old or the new version, never half-written.
 
-use crate::error::{Error, Result};
+use super::error::{Error, Result};
 use std::io::Write;
 use std::path::Path;
 

@@ -4,7 +4,7 @@
 //! default, help). The same table validates suites with errors that name the file, line and
 //! key, and prints `optbench list`, so documentation and checks cannot drift apart.
 
-use crate::error::Error;
+use super::error::Error;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
