@@ -4,12 +4,12 @@
 
 use criterion::{BenchmarkId, Criterion, Throughput};
 use optbench::base::TrialSeed;
-use optbench::harness::{Evaluator, TrialSpec, run_trial};
+use optbench::harness::{Evaluator, OptimizerConfig};
 use optbench::objective::Objective;
 use optbench::objective::functions::{Function, TestFunction};
-use optbench::optimizer::OptimizerConfig;
 use optbench::optimizer::msga::MsgaConfig;
 use optbench::registry::default_optimizer;
+use optbench::runner::{TrialSpec, run_trial};
 use std::hint::black_box;
 use std::sync::Arc;
 

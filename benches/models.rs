@@ -17,10 +17,10 @@ static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 use criterion::{BenchmarkId, Criterion, Throughput};
 use optbench::physics::bouc_wen;
 use optbench::physics::bouc_wen_fast::{self, FastInput};
+use optbench::physics::fixtures;
 use optbench::physics::rbf::{self, Mode, Narx, RbfNet, Regressors};
 use optbench::physics::rbf_fast::RbfBatch;
 use optbench::physics::structure::{Context, Effect, Form, Structure};
-use optbench::speed::fixtures;
 use rayon::prelude::*;
 use std::hint::black_box;
 

@@ -6,14 +6,14 @@
 //! Flags become the same parameter tables as suites use (`optbench list`), so checks and
 //! messages are the same.
 
-use crate::base::TrialSeed;
-use crate::base::atomic_write;
 use crate::base::error::{Error, Result};
 use crate::base::params::{Origin, Params};
-use crate::harness::{TrialRecord, TrialSpec, run_trial};
+use crate::base::{TrialSeed, atomic_write};
+use crate::harness::TrialRecord;
 use crate::objective::Objective;
 use crate::registry::{objective_kinds, optimizer_kinds};
 use crate::report::{plots, table::sig};
+use crate::runner::{TrialSpec, run_trial};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -8,7 +8,9 @@
 //! - [`optimizer`]: optimizers (GA, PSO, MSGA, random search) that only see an evaluator.
 //! - [`base`]: the ground floor: seeds and random streams, the stable hash, atomic writes,
 //!   errors, parameter tables. It imports nothing of the project.
-//! - [`harness`]: the evaluator (the one place evaluations are counted) and the trial loop.
+//! - [`harness`]: the optimizer contract beside the evaluator (the one place evaluations are
+//!   counted), and the record of a trial.
+//! - [`runner`]: the trial loop, above optimizers and harness, and a plan's trials in parallel.
 //! - [`suite`]: TOML suites, parameter validation, the plan of trials.
 //! - [`results`]: the result store (traces, summary, provenance), written atomically.
 //! - [`scale`]: resume after a crash, shards and their merge, MPI ranks (feature `mpi`).

@@ -3,80 +3,26 @@
 //!
 //! Every figure is the median of several timed repetitions (wall clock, after one warm-up).
 //! The all-thread figures run the whole population on every thread at once (per core: each
-//! thread's rate). The fixtures are shared with the criterion benches (`benches/models.rs`),
-//! which give the detailed view.
+//! thread's rate). Its fixtures ([`crate::physics::fixtures`]) are shared with the criterion
+//! benches (`benches/models.rs`), which give the detailed view.
 
 use crate::base::TrialSeed;
-use crate::harness::{Evaluator, TrialSpec, run_trial};
+use crate::harness::Evaluator;
 use crate::objective::fit::BoucWenFit;
 use crate::objective::functions::{Function, TestFunction};
 use crate::objective::{Bounds, Objective};
 use crate::optimizer::msga::MsgaConfig;
-use crate::physics::bouc_wen::{self, BoucWenParams};
+use crate::physics::bouc_wen;
 use crate::physics::bouc_wen_fast::{self, FastInput};
+use crate::physics::fixtures;
 use crate::physics::rbf::{self, Mode, Narx, RbfNet, Regressors};
 use crate::physics::rbf_fast::RbfBatch;
 use crate::recording::Recording;
-use rand::{RngExt, SeedableRng};
+use crate::runner::{TrialSpec, run_trial};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;
 use std::time::Instant;
-
-/// Test fixtures: a fitting-sized record and populations around its truth.
-pub mod fixtures {
-    use super::*;
-
-    /// The Bouc-Wen parameters of [`record`] (the twin's hysteresis on the command scale).
-    pub const TRUTH: BoucWenParams = BoucWenParams {
-        d_e: 0.1545,
-        alpha: 0.045,
-        beta: 0.45,
-        gamma: 0.225,
-        n: 1.0,
-        d0: 0.0,
-    };
-
-    /// `n` samples of a 10 Hz sine on the twin's command scale (1 ms) and the Bouc-Wen
-    /// output of [`TRUTH`].
-    pub fn record(n: usize) -> (Vec<f64>, Vec<f64>) {
-        let u: Vec<f64> = (0..n)
-            .map(|k| 2.35 + 2.3 * (2.0 * std::f64::consts::PI * 10.0 * k as f64 * 1e-3).sin())
-            .collect();
-        let mut y = vec![0.0; n];
-        bouc_wen::simulate(&TRUTH, &u, &mut y);
-        (u, y)
-    }
-
-    /// `k` parameter sets, each within ±50 % of [`TRUTH`] (as in mid-search).
-    pub fn bouc_wen_population(k: usize, seed: u64) -> Vec<BoucWenParams> {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let mut f = |x: f64| x * rng.random_range(0.5..1.5);
-        (0..k)
-            .map(|_| BoucWenParams {
-                d_e: f(TRUTH.d_e),
-                alpha: f(TRUTH.alpha),
-                beta: f(TRUTH.beta),
-                gamma: f(TRUTH.gamma),
-                n: f(TRUTH.n),
-                d0: 0.0,
-            })
-            .collect()
-    }
-
-    /// `k` row-major parameter vectors of the seed's 3-7-1 network on `(u, y)`, each entry
-    /// within ±20 % of the usual initialisation.
-    pub fn rbf_population(u: &[f64], y: &[f64], k: usize, seed: u64) -> Vec<f64> {
-        let (net, narx) = (RbfNet::SEED, Narx::SEED);
-        let regs = Regressors::new(&narx, u, y);
-        let (lo, hi) = regs.input_ranges();
-        let base = rbf::init_params(&net, &lo, &hi);
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let d = net.n_params();
-        (0..k * d)
-            .map(|q| base[q % d] * rng.random_range(0.8..1.2))
-            .collect()
-    }
-}
 
 /// Sizes of a run.
 #[derive(Clone, Copy, Debug)]

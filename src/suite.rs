@@ -31,8 +31,8 @@
 use crate::base::TrialSeed;
 use crate::base::error::{Error, Result};
 use crate::base::params::{Origin, Params};
+use crate::harness::OptimizerConfig;
 use crate::objective::Objective;
-use crate::optimizer::OptimizerConfig;
 use crate::registry::{objective_kinds, optimizer_kinds};
 use serde::Deserialize;
 use std::collections::{BTreeMap, BTreeSet};

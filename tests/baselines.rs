@@ -6,12 +6,11 @@ mod common;
 
 use common::{Probe, without_time};
 use optbench::base::TrialSeed;
-use optbench::harness::{TrialRecord, TrialSpec, run_trial};
+use optbench::harness::{OptimizerConfig, TrialRecord};
 use optbench::objective::Objective;
 use optbench::objective::functions::TestFunction;
-use optbench::optimizer::OptimizerConfig;
 use optbench::registry::default_optimizer;
-use optbench::runner::{RunOptions, run_suite};
+use optbench::runner::{RunOptions, TrialSpec, run_suite, run_trial};
 use optbench::suite::Suite;
 use std::path::Path;
 use std::sync::Arc;

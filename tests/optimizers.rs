@@ -5,12 +5,12 @@ mod common;
 
 use common::{Probe, without_time};
 use optbench::base::TrialSeed;
-use optbench::harness::{TrialSpec, run_trial};
+use optbench::harness::OptimizerConfig;
 use optbench::objective::Objective;
 use optbench::objective::functions::TestFunction;
-use optbench::optimizer::OptimizerConfig;
 use optbench::optimizer::msga::MsgaConfig;
 use optbench::registry::{default_optimizer, optimizer_kinds};
+use optbench::runner::{TrialSpec, run_trial};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 

@@ -5,13 +5,13 @@
 //! the polish's Jacobian is that of the projected residuals).
 
 use crate::base::TrialSeed;
-use crate::harness::{TrialRecord, TrialSpec, run_trial};
+use crate::harness::{Optimizer, OptimizerConfig, TrialRecord};
 use crate::objective::{Bounds, Objective};
 use crate::optimizer::levenberg_marquardt::LevenbergMarquardtFrom;
 use crate::optimizer::nelder_mead::NelderMead;
 use crate::optimizer::pso::PsoConfig;
-use crate::optimizer::{Optimizer, OptimizerConfig};
 use crate::physics::structure::{LinearFit, Projection, Structure};
+use crate::runner::{TrialSpec, run_trial};
 use rayon::prelude::*;
 use std::sync::{Arc, Mutex};
 

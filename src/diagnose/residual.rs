@@ -714,8 +714,7 @@ mod tests {
         );
         assert!((after / sigma - 1.0).abs() < 0.1, "{after}");
     }
-    use crate::base::TrialSeed;
-    use crate::base::standard_normal;
+    use crate::base::{TrialSeed, standard_normal};
     use rand::RngExt;
 
     fn white(n: usize, seed: u64, sigma: f64) -> Vec<f64> {

@@ -1,8 +1,12 @@
-//! The harness owns everything around an optimizer: evaluation counting and budgets
-//! ([`Evaluator`]), random streams ([`TrialSeed`]), and the trial loop ([`run_trial`]).
+//! The harness owns everything around an optimizer: the contract an optimizer implements
+//! ([`Optimizer`], [`OptimizerConfig`]), evaluation counting and budgets ([`Evaluator`]),
+//! and the record a trial leaves ([`TrialRecord`]). The trial loop that drives it all is
+//! above, in the runner (`runner/trial.rs`).
 
+pub mod contract;
 pub mod evaluator;
-pub mod trial;
+pub mod record;
 
+pub use contract::{Optimizer, OptimizerConfig};
 pub use evaluator::{Evaluated, Evaluator, Grant, Stall, Trace};
-pub use trial::{TrialRecord, TrialSpec, run_trial};
+pub use record::TrialRecord;

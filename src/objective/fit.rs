@@ -899,7 +899,7 @@ impl FitView for BoucWenFit {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     fn eq318_recording(n: usize) -> Recording {
@@ -913,7 +913,7 @@ mod tests {
     use rand::RngExt;
 
     /// The generating Bouc-Wen model of the initial-state tests (saturation 1/0.9).
-    const TRUTH: BoucWenParams = BoucWenParams {
+    pub(crate) const TRUTH: BoucWenParams = BoucWenParams {
         d_e: 0.8,
         alpha: 1.0,
         beta: 0.6,
@@ -921,14 +921,14 @@ mod tests {
         n: 1.0,
         d0: 0.0,
     };
-    const TRUTH_X: [f64; 5] = [TRUTH.d_e, TRUTH.alpha, TRUTH.beta, TRUTH.gamma, TRUTH.n];
+    pub(crate) const TRUTH_X: [f64; 5] = [TRUTH.d_e, TRUTH.alpha, TRUTH.beta, TRUTH.gamma, TRUTH.n];
 
     /// A record of [`TRUTH`] (accurate kernel) at 2 ms: a two-tone drive of base frequency
     /// `f` in [0.05, 0.95], simulated from rest for `skip + samples` samples of which the
     /// first `skip` are dropped (`skip > 0`: the record starts mid-loop), plus offset `d0`
     /// and uniform noise of amplitude `noise` (seeded). Returns the record and the true
     /// hysteretic state at its first sample.
-    fn bw_record(
+    pub(crate) fn bw_record(
         name: &str,
         f: f64,
         skip: usize,
@@ -956,24 +956,7 @@ mod tests {
         (rec, h0)
     }
 
-    /// Best point of `budget` evaluations of CMA-ES on `fit`.
-    fn fit_cmaes(fit: BoucWenFit, budget: u64) -> (Vec<f64>, f64, std::sync::Arc<dyn Objective>) {
-        let obj: std::sync::Arc<dyn Objective> = std::sync::Arc::new(fit);
-        let rec = crate::harness::run_trial(crate::harness::TrialSpec {
-            objective_id: "fit",
-            optimizer_id: "cmaes",
-            trial: 0,
-            objective: std::sync::Arc::clone(&obj),
-            optimizer: &crate::optimizer::cmaes::CmaesConfig::default(),
-            budget,
-            stop_value: None,
-            stall: None,
-            seed: crate::base::TrialSeed::from_u64(5),
-        });
-        (rec.best_x, rec.best, obj)
-    }
-
-    fn named(obj: &dyn Objective, x: &[f64], name: &str) -> f64 {
+    pub(crate) fn named(obj: &dyn Objective, x: &[f64], name: &str) -> f64 {
         let v = obj.as_fit().unwrap().named_params(x);
         v.iter()
             .find(|(n, _)| n == name)
@@ -981,65 +964,12 @@ mod tests {
             .1
     }
 
-    fn metric(obj: &dyn Objective, x: &[f64], name: &str) -> f64 {
+    pub(crate) fn metric(obj: &dyn Objective, x: &[f64], name: &str) -> f64 {
         let m = obj.metrics(x);
         m.iter()
             .find(|m| m.name == name)
             .unwrap_or_else(|| panic!("no {name} in {m:?}"))
             .value
-    }
-
-    /// Two noise-free records of one actuator, the second cut from the middle of a longer
-    /// run so that it starts mid-loop: with an initial state per record the fit recovers the
-    /// generating parameters and the second record's state, at a cost far below the best
-    /// fit from rest (which must bend the shared parameters to explain the second start).
-    #[test]
-    fn each_training_record_gets_an_initial_state_of_its_own() {
-        let (a, a0) = bw_record("a", 1.0, 0, 750, 0.0, 0.0, 1);
-        let (b, b0) = bw_record("b", 0.7, 1071, 900, 0.0, 0.0, 2);
-        let sat = TRUTH.saturation().unwrap();
-        assert_eq!(a0, 0.0);
-        assert!(b0.abs() > 0.2 * sat, "the cut starts mid-loop: {b0}");
-        let recs = [a, b];
-        let make = || BoucWenFit::new(&recs, &[], false, false, 0.0, 1.5).unwrap();
-        let fit = make();
-        assert!(fit.fits_initial_states());
-        assert_eq!(fit.dim(), 7);
-        assert_eq!(&fit.bounds().lower()[5..], &[-1.0, -1.0]);
-        assert_eq!(&fit.bounds().upper()[..6], &[1.5, 1.5, 1.5, 1.5, 1.5, 1.0]);
-        // At the truth (fractions 0 and b0/sat) the cost is the scheme's error only.
-        let mut x: Vec<f64> = TRUTH_X.to_vec();
-        x.extend([0.0, b0 / sat]);
-        let at_truth = fit.evaluate(&x);
-        let (best, cost, obj) = fit_cmaes(make(), 12_000);
-        let rest = make().with_initial_states(false);
-        assert_eq!(rest.dim(), 5);
-        let (rest_best, rest_cost, rest_obj) = fit_cmaes(rest, 12_000);
-        let h0 = named(obj.as_ref(), &best, "h0@2 []");
-        eprintln!(
-            "cost at truth {at_truth:.2e}, fitted {cost:.2e}, from rest {rest_cost:.2e} \
-             (ratio {:.0}); h0@2 {h0:.5} vs {b0:.5} ({:.1e} of sat); h0 {:.2e}; x {best:?}; \
-             from rest {rest_best:?}",
-            rest_cost / cost,
-            (h0 - b0).abs() / sat,
-            named(obj.as_ref(), &best, "h0 []"),
-        );
-        assert!(at_truth < 1e-8, "{at_truth:e}");
-        for (i, (got, want)) in best.iter().zip(TRUTH_X).enumerate() {
-            assert!(
-                (got - want).abs() < 0.01 * want,
-                "parameter {i}: {got} vs {want}"
-            );
-        }
-        assert!((h0 - b0).abs() < 0.01 * sat, "h0@2 {h0} vs {b0}");
-        assert!(named(obj.as_ref(), &best, "h0 []").abs() < 0.01 * sat);
-        assert!(
-            cost < 1e-3 * rest_cost,
-            "{cost:e} vs from rest {rest_cost:e}"
-        );
-        // The from-rest fit's second record is visibly off at its start.
-        let train2 = |o: &dyn Objective, x: &[f64]| metric(o, x, "train2 RMSE");
-        assert!(train2(rest_obj.as_ref(), &rest_best) > 10.0 * train2(obj.as_ref(), &best));
     }
 
     /// A validation record with an offset and a mid-loop start of its own, beside two

@@ -18,10 +18,8 @@
 //! number above 1e14, or non-finite state. The symmetric eigendecomposition of C comes from
 //! nalgebra and is refreshed lazily (every lambda / (c1 + c_mu) / d / 10 generations).
 
-use super::{Optimizer, OptimizerConfig};
-use crate::base::TrialSeed;
-use crate::base::standard_normal;
-use crate::harness::Evaluator;
+use crate::base::{TrialSeed, standard_normal};
+use crate::harness::{Evaluator, Optimizer, OptimizerConfig};
 use crate::objective::Bounds;
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use rand_chacha::ChaCha8Rng;

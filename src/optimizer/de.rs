@@ -9,10 +9,8 @@
 //! SHADE), so every point evaluated lies inside the box and the search can still approach a
 //! bound. Every random number comes from the trial's stream 0, drawn in a fixed order.
 
-use super::{Optimizer, OptimizerConfig};
-use crate::base::TrialSeed;
-use crate::base::standard_normal;
-use crate::harness::Evaluator;
+use crate::base::{TrialSeed, standard_normal};
+use crate::harness::{Evaluator, Optimizer, OptimizerConfig};
 use crate::objective::Bounds;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;

@@ -4,9 +4,8 @@
 //! whole population except the `elite` best, which are carried over unevaluated.
 
 use super::operators::{Mutation, Roulette, arithmetic_crossover, ranking};
-use super::{Optimizer, OptimizerConfig};
 use crate::base::TrialSeed;
-use crate::harness::Evaluator;
+use crate::harness::{Evaluator, Optimizer, OptimizerConfig};
 use crate::objective::Bounds;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;

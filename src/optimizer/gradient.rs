@@ -8,9 +8,8 @@
 //! seed uses a fixed rate; without the adaptation a fixed rate either diverges or crawls, and
 //! a baseline should be a fair one.
 
-use super::{Optimizer, OptimizerConfig};
 use crate::base::TrialSeed;
-use crate::harness::Evaluator;
+use crate::harness::{Evaluator, Optimizer, OptimizerConfig};
 use crate::objective::Bounds;
 
 /// Settings of the gradient-descent (BP) baseline.

@@ -17,9 +17,9 @@
 //! descent direction) it restarts from a uniform random point of the box, so a standalone
 //! run spends its whole budget as multistart L-BFGS; the evaluator keeps the best point.
 
-use super::{Optimizer, OptimizerConfig, dot};
+use super::dot;
 use crate::base::TrialSeed;
-use crate::harness::Evaluator;
+use crate::harness::{Evaluator, Optimizer, OptimizerConfig};
 use crate::objective::Bounds;
 use rand_chacha::ChaCha8Rng;
 use std::collections::VecDeque;

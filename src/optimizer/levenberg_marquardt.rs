@@ -9,9 +9,9 @@
 //!
 //! [`Objective::residuals`]: crate::objective::Objective::residuals
 
-use super::{Optimizer, OptimizerConfig, dot};
+use super::dot;
 use crate::base::TrialSeed;
-use crate::harness::Evaluator;
+use crate::harness::{Evaluator, Optimizer, OptimizerConfig};
 use crate::objective::Bounds;
 
 /// Forward-difference step, as a fraction of each interval's width.
@@ -284,7 +284,7 @@ fn cholesky_solve(s: &mut [Vec<f64>], b: &[f64]) -> Option<Vec<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::harness::{Stall, TrialSpec, run_trial};
+    use crate::harness::{Evaluator, OptimizerConfig, Trace};
     use crate::objective::Objective;
     use std::sync::Arc;
     use std::sync::atomic::{AtomicU64, Ordering};
@@ -337,21 +337,19 @@ mod tests {
         }
     }
 
-    fn solve(obj: Arc<Decay>, start: &[f64], budget: u64) -> crate::harness::TrialRecord {
-        run_trial(TrialSpec {
-            objective_id: "decay",
-            optimizer_id: "levenberg-marquardt",
-            trial: 0,
-            objective: obj,
-            optimizer: &LevenbergMarquardtFrom {
-                start: start.to_vec(),
-                rel_tol: 1e-12,
-            },
-            budget,
-            stop_value: None,
-            stall: None::<Stall>,
-            seed: TrialSeed::from_u64(1),
-        })
+    /// The polish from `start` driven through the contract alone (the trial loop is a
+    /// floor above the optimizers): step until the evaluator is done.
+    fn solve(obj: Arc<Decay>, start: &[f64], budget: u64) -> Trace {
+        let config = LevenbergMarquardtFrom {
+            start: start.to_vec(),
+            rel_tol: 1e-12,
+        };
+        let mut opt = config.start(obj.bounds(), budget, &TrialSeed::from_u64(1));
+        let mut ev = Evaluator::new(obj, budget, None);
+        while !ev.done() {
+            opt.step(&mut ev);
+        }
+        ev.finish()
     }
 
     #[test]

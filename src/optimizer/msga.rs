@@ -50,9 +50,8 @@
 //! (tested with random pauses).
 
 use super::operators::{Mutation, Roulette, arithmetic_crossover, ranking};
-use super::{Optimizer, OptimizerConfig};
 use crate::base::TrialSeed;
-use crate::harness::{Evaluated, Evaluator, Grant};
+use crate::harness::{Evaluated, Evaluator, Grant, Optimizer, OptimizerConfig};
 use crate::objective::Bounds;
 use crossbeam_channel::{Receiver, Sender, unbounded};
 use rand::RngExt;

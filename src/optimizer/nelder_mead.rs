@@ -6,9 +6,8 @@
 //! steps of `step` times each interval's width; when the simplex collapses (spread of values
 //! below 1e-12 relative) it restarts around its best point, so the method never stalls.
 
-use super::{Optimizer, OptimizerConfig};
 use crate::base::TrialSeed;
-use crate::harness::Evaluator;
+use crate::harness::{Evaluator, Optimizer, OptimizerConfig};
 use crate::objective::Bounds;
 
 /// Nelder-Mead settings.

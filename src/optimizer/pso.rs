@@ -5,9 +5,8 @@
 //! leaves the box is put back on the violated bound and that velocity component is zeroed
 //! ("absorbing walls").
 
-use super::{Optimizer, OptimizerConfig};
 use crate::base::TrialSeed;
-use crate::harness::Evaluator;
+use crate::harness::{Evaluator, Optimizer, OptimizerConfig};
 use crate::objective::Bounds;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;

@@ -1,8 +1,7 @@
 //! Uniform random search: the floor every method must beat.
 
-use super::{Optimizer, OptimizerConfig};
 use crate::base::TrialSeed;
-use crate::harness::Evaluator;
+use crate::harness::{Evaluator, Optimizer, OptimizerConfig};
 use crate::objective::Bounds;
 use rand_chacha::ChaCha8Rng;
 

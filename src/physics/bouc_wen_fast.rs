@@ -1042,7 +1042,7 @@ mod tests {
     fn explicit_kernel_is_accurate_and_batch_independent_on_a_fit_population() {
         // The benchmark's mid-search population (every parameter within ±50 % of the truth,
         // n from 0.5 to 1.5) on its 10 Hz record: the cheap power costs J about 2e-9.
-        use crate::speed::fixtures;
+        use crate::physics::fixtures;
         let (u, y) = fixtures::record(3000);
         let input = FastInput::explicit(&u, &y);
         let pop = fixtures::bouc_wen_population(2 * EXPLICIT_LANES + 5, 3);

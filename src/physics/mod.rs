@@ -17,6 +17,7 @@
 pub mod bouc_wen;
 pub mod bouc_wen_fast;
 pub mod fastmath;
+pub mod fixtures;
 pub mod linear;
 pub mod rbf;
 pub mod rbf_fast;

@@ -4,7 +4,7 @@
 use super::OptimizerKind;
 use crate::base::error::Error;
 use crate::base::params::{Default as D, Kind, Params, Spec, probability};
-use crate::optimizer::OptimizerConfig;
+use crate::harness::OptimizerConfig;
 use crate::optimizer::cmaes::CmaesConfig;
 use crate::optimizer::de::{DeConfig, ShadeConfig};
 use crate::optimizer::lbfgs::{GradientSource, LbfgsConfig};

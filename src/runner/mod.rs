@@ -1,8 +1,12 @@
 //! Runs a suite's plan: every trial in parallel on a rayon pool, results in plan order, so
 //! the output does not depend on the number of threads.
 
+pub mod trial;
+
+pub use trial::{TrialSpec, run_trial};
+
 use crate::base::error::{Error, Result};
-use crate::harness::{TrialRecord, TrialSpec, run_trial};
+use crate::harness::TrialRecord;
 use crate::suite::{PlannedTrial, Suite};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
