@@ -3,8 +3,8 @@
 use crate::base::error::Error;
 use crate::base::params::{Default as D, Kind, Params, Spec, probability};
 use crate::harness::OptimizerConfig;
-use crate::objective::fit::{BoucWenFit, BoucWenScheme, RbfFit};
 use crate::objective::functions::{Function, TestFunction};
+use crate::objective::hysteresis::{BoucWenFit, BoucWenScheme, RbfFit};
 use crate::objective::source::{SimOptions, Source};
 use crate::objective::{Bounds, Objective};
 use crate::optimizer::ga::GaConfig;

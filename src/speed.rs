@@ -8,8 +8,8 @@
 
 use crate::base::TrialSeed;
 use crate::harness::Evaluator;
-use crate::objective::fit::BoucWenFit;
 use crate::objective::functions::{Function, TestFunction};
+use crate::objective::hysteresis::BoucWenFit;
 use crate::objective::{Bounds, Objective};
 use crate::optimizer::msga::MsgaConfig;
 use crate::physics::bouc_wen;

@@ -7,7 +7,7 @@ use common::{code_and_stderr, lab_csv, optbench, read_json, run_shipped_suite};
 use optbench::base::TrialSeed;
 use optbench::harness::OptimizerConfig;
 use optbench::objective::Objective;
-use optbench::objective::fit::{BoucWenFit, RbfFit};
+use optbench::objective::hysteresis::{BoucWenFit, RbfFit};
 use optbench::objective::source::{SimOptions, Source};
 use optbench::optimizer::gradient::GradientConfig;
 use optbench::optimizer::pso::PsoConfig;

@@ -6,7 +6,7 @@ use crate::base::TrialSeed;
 use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
 use crate::objective::Objective;
-use crate::objective::fit::{FitData, FitView, RbfFit};
+use crate::objective::hysteresis::{FitData, FitView, RbfFit};
 use crate::objective::source::{SimOptions, Source};
 use crate::optimizer::pso::PsoConfig;
 use crate::physics::rbf::{Mode, Narx, RbfNet};
@@ -358,7 +358,7 @@ fn check_scales(model: &RbfModel, rec: &Recording, free: &[f64]) -> Result<()> {
     if worst > 1e-9 * model.y_scale.max(1.0) {
         return Err(Error::Input(format!(
             "internal model: the fit's scaling changed (model output differs by {worst:.3e} mm); \
-             control::model must follow objective::fit"
+             control::model must follow objective::hysteresis"
         )));
     }
     Ok(())

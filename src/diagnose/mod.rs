@@ -30,9 +30,9 @@
 
 pub mod cli;
 pub mod coupling;
-pub mod fit;
 pub mod plausible;
 pub mod proof;
+pub mod refit;
 pub mod report;
 pub mod residual;
 pub mod suggest;
@@ -45,10 +45,10 @@ use crate::physics::structure::{
     Context, Effect, Form, Hold, MAX_RECORDS, ParamSpec, Placement, Structure,
 };
 use crate::recording::Recording;
-use fit::{Budget, Fitted};
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use refit::{Budget, Fitted};
 use residual::{Located, TestResult};
 use rustfft::num_complex::Complex64;
 use serde::Serialize;
@@ -399,12 +399,12 @@ impl Data {
         } else {
             (self.uv.clone(), yv.to_vec())
         };
-        let other_interval = !fit::same_interval(self.dv, self.scope.dt);
+        let other_interval = !refit::same_interval(self.dv, self.scope.dt);
         let f = match &self.validation_parts {
             Some(parts) => f.on_records(parts),
             None => f.at_interval(self.dv),
         };
-        let (theta, used) = fit::record_state_for(&f, &u, &y, 60, seed, other_interval);
+        let (theta, used) = refit::record_state_for(&f, &u, &y, 60, seed, other_interval);
         let (out, coef) = f.structure.simulate_on(&theta, &f.linear.coef, &u, &y);
         let own = f.structure.record_coefs().len()
             + f.structure
@@ -595,7 +595,7 @@ fn bootstrap_scores(base: &Fitted, d: &Data, sigma: f64, opts: &Options) -> (Vec
                 .map(|m| m + sigma * standard_normal(&mut rng))
                 .collect();
             let yt = Arc::new(yt);
-            let refit = fit::fit(
+            let refit = refit::fit(
                 st,
                 &d.ut,
                 &yt,
@@ -921,11 +921,11 @@ fn fit_proposal(
         opts.candidate_budget
     };
     let run = |free: &[usize]| {
-        let from = fit::Start {
+        let from = refit::Start {
             at: Some(&start),
             hints: &hints,
         };
-        fit::fit_from(
+        refit::fit_from(
             &st,
             &d.ut,
             &d.yt,
@@ -1432,7 +1432,7 @@ fn repolish_budget(opts: &Options) -> Budget {
 /// of two modes and creep lowered the training cost and took the validation RMSE from 1.1x
 /// to 2.6x the noise, and every later candidate was judged against that.)
 fn repolish(c: Evaluated, d: &Data, opts: &Options, salt: u64) -> (Evaluated, u64) {
-    let g = fit::fit(
+    let g = refit::fit(
         &c.fitted.structure,
         &d.ut,
         &d.yt,
@@ -1767,7 +1767,7 @@ pub fn diagnose_with_tests(
             ..opts.baseline_budget
         },
     };
-    let base_fit = fit::fit(&plain, &d.ut, &d.yt, None, None, base_budget, opts.seed);
+    let base_fit = refit::fit(&plain, &d.ut, &d.yt, None, None, base_budget, opts.seed);
     let mut evaluations = base_fit.evaluations;
     // With n free, ask BIC whether n = 1 (the closed-form kernel, ten times faster) is as
     // good: keep n free only if it improves BIC by the margin.
@@ -1778,7 +1778,7 @@ pub fn diagnose_with_tests(
     let base_fit = if fixed_n.is_none() {
         let pinned = on_records(Structure::new(&[], Some(1.0), ctx));
         let start = plain.embed(&base_fit.theta, &pinned);
-        let f1 = fit::fit(
+        let f1 = refit::fit(
             &pinned,
             &d.ut,
             &d.yt,
@@ -2176,7 +2176,7 @@ pub fn diagnose_with_tests(
                     .map(|&e| {
                         let smaller = st.without(e);
                         let start = st.embed(&current.fitted.theta, &smaller);
-                        let f = fit::fit(
+                        let f = refit::fit(
                             &smaller,
                             &d.ut,
                             &d.yt,
@@ -2799,7 +2799,7 @@ mod tests {
 
     /// `st` fitted to the training record with the baseline's budget.
     fn baseline_fit(st: &Structure, data: &Data, opts: &Options) -> Fitted {
-        fit::fit(st, &data.ut, &data.yt, None, None, opts.baseline_budget, 1)
+        refit::fit(st, &data.ut, &data.yt, None, None, opts.baseline_budget, 1)
     }
 
     /// A fitted structure with one effect's parameters (the linear part is not looked at).

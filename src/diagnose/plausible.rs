@@ -4,7 +4,7 @@
 //! own slope). The search does not act on these flags; the report states them beside the
 //! evidence, so a name resting on such a value is never given without saying so.
 
-use super::fit::Fitted;
+use super::refit::Fitted;
 use crate::physics::structure::{Effect, ParamSpec, Placement};
 use crate::report::table::sig;
 use rustfft::FftPlanner;
@@ -346,7 +346,7 @@ fn effect_of(name: &str) -> Effect {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnose::fit::Fitted;
+    use crate::diagnose::refit::Fitted;
     use crate::physics::structure::{Context, Form, Structure};
 
     fn sine(hz: f64, dt: f64, n: usize) -> Vec<f64> {

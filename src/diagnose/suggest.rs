@@ -8,8 +8,8 @@
 //! proposed, as a signal spec a lab can play. Without the refit a drift would look
 //! separated from creep on any record, though on each new record it would be refitted.
 
-use super::fit::{self, Fitted};
 use super::from_rest;
+use super::refit::{self, Fitted};
 #[cfg(test)]
 use crate::physics::structure::Form;
 use crate::report::table::sig;
@@ -37,7 +37,7 @@ fn unexplained(a: &Fitted, b: &Fitted, x: &[f64], seed: u64) -> f64 {
     if ya.iter().any(|v| !v.is_finite()) {
         return 0.0;
     }
-    let budget = fit::Budget {
+    let budget = refit::Budget {
         global: 0,
         swarm: 1,
         polish: REFIT_POLISH,
@@ -46,7 +46,7 @@ fn unexplained(a: &Fitted, b: &Fitted, x: &[f64], seed: u64) -> f64 {
         screen: 0.0,
     };
     let (x, ya) = (Arc::new(x.to_vec()), Arc::new(ya));
-    let fb = fit::fit(&b.structure, &x, &ya, Some(&b.theta), None, budget, seed);
+    let fb = refit::fit(&b.structure, &x, &ya, Some(&b.theta), None, budget, seed);
     let r = fb.rmse(x.len());
     if r.is_finite() { r } else { 0.0 }
 }
@@ -354,7 +354,7 @@ mod tests {
                 .map(|&p| {
                     let st = Structure::with_forms(&[p], Some(1.0), ctx, Placement::After);
                     bic(
-                        &fit::fit(&st, &u, &y, None, None, opts.baseline_budget, 1),
+                        &refit::fit(&st, &u, &y, None, None, opts.baseline_budget, 1),
                         r.len(),
                     )
                 })

@@ -1,8 +1,8 @@
 //! Black-box objectives. An objective knows its domain and how to evaluate points; it knows
 //! nothing of optimizers, budgets or files.
 
-pub mod fit;
 pub mod functions;
+pub mod hysteresis;
 pub mod source;
 
 use rand::{Rng, RngExt};
@@ -178,7 +178,7 @@ pub trait Objective: Send + Sync {
 
     /// The fitting view of objectives that fit a model to a recording (for `optbench fit`
     /// plots and parameter tables); `None` for other objectives.
-    fn as_fit(&self) -> Option<&dyn fit::FitView> {
+    fn as_fit(&self) -> Option<&dyn hysteresis::FitView> {
         None
     }
 }

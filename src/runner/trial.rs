@@ -65,8 +65,8 @@ mod tests {
     //! The trial loop driving a real fit: here, above both the objective and the
     //! optimizer it joins.
     use super::*;
-    use crate::objective::fit::BoucWenFit;
-    use crate::objective::fit::tests::{TRUTH, TRUTH_X, bw_record, metric, named};
+    use crate::objective::hysteresis::BoucWenFit;
+    use crate::objective::hysteresis::tests::{TRUTH, TRUTH_X, bw_record, metric, named};
 
     /// Best point of `budget` evaluations of CMA-ES on `fit`.
     fn fit_cmaes(fit: BoucWenFit, budget: u64) -> (Vec<f64>, f64, std::sync::Arc<dyn Objective>) {

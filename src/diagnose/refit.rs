@@ -1,5 +1,6 @@
-//! Fitting a [`Structure`] with the harness's optimizers: the shape parameters are searched
-//! (PSO, then a Levenberg-Marquardt polish on the residuals, each a trial of [`run_trial`]
+//! Refits of a [`Structure`] (the diagnosis's candidate models) with the harness's
+//! optimizers: the shape parameters are searched (PSO, then a Levenberg-Marquardt polish
+//! on the residuals, each a trial of [`run_trial`]
 //! so every evaluation is counted by the [`crate::harness::Evaluator`]); the linear
 //! coefficients are solved by least squares inside each evaluation (variable projection:
 //! the polish's Jacobian is that of the projected residuals).

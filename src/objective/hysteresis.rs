@@ -1,4 +1,4 @@
-//! Fitting objectives: the cost of a model's parameters on a recording.
+//! Hysteresis-fit objectives: the cost of a model's parameters on a recording.
 //!
 //! Data are normalised before fitting (input and output divided by their largest absolute
 //! value on the training record), so one set of parameter bounds serves an actuator in
