@@ -18,24 +18,18 @@
 //! - [`control`]: hysteresis compensation in closed loop (IMC with RBF networks, PID).
 
 pub mod base;
-pub mod cli;
+pub mod cmd;
 pub mod control;
+pub mod data;
 pub mod diagnose;
-pub mod fitting;
 pub mod harness;
 pub mod objective;
 pub mod optimizer;
 pub mod physics;
-pub mod recording;
+pub mod pipeline;
 pub mod registry;
 pub mod report;
-pub mod results;
-pub mod runner;
-pub mod scale;
-pub mod signal;
-pub mod simulate;
 pub mod speed;
 pub mod stats;
-pub mod suite;
 
 pub use base::error::{Error, Result};
