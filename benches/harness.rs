@@ -8,8 +8,8 @@ use optbench::harness::{Evaluator, OptimizerConfig};
 use optbench::objective::Objective;
 use optbench::objective::functions::{Function, TestFunction};
 use optbench::optimizer::msga::MsgaConfig;
+use optbench::pipeline::runner::{TrialSpec, run_trial};
 use optbench::registry::default_optimizer;
-use optbench::runner::{TrialSpec, run_trial};
 use std::hint::black_box;
 use std::sync::Arc;
 

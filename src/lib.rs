@@ -1,41 +1,45 @@
 //! optbench: a reproducible benchmark harness for black-box optimizers, built around the
 //! identification and compensation of hysteresis in piezoelectric actuators.
 //!
-//! The flow is suite TOML -> plan -> trials (objective x optimizer x seed) -> traces ->
-//! result store -> statistics -> report. Each stage lives in its own module:
+//! Two flows share one house. Benchmarks: suite TOML -> plan -> trials (objective x optimizer
+//! x seed) -> traces -> result store -> statistics -> report. Physics: recording -> model ->
+//! fit -> diagnose or compensate. The modules, from the ground floor up (a module imports
+//! only the floors below it; `scripts/import_graph.py --layers` and a test check it):
 //!
-//! - [`objective`]: the black-box [`objective::Objective`] trait and the test functions.
-//! - [`optimizer`]: optimizers (GA, PSO, MSGA, random search) that only see an evaluator.
-//! - [`base`]: the ground floor: seeds and random streams, the stable hash, atomic writes,
-//!   errors, parameter tables. It imports nothing of the project.
+//! - [`base`]: seeds and random streams, the stable hash, atomic writes, errors, parameter
+//!   tables. Imports nothing of the project.
+//! - [`data`]: recordings read as labs write them, and the drive signals of experiments.
+//! - [`physics`]: the hysteresis models (Bouc-Wen, RBF network, the restoring-force and
+//!   structure extensions), the piezo twin; shared by fitting, diagnosis and control.
+//! - [`objective`]: the black-box [`objective::Objective`] trait, the test functions and the
+//!   hysteresis-fit objectives.
 //! - [`harness`]: the optimizer contract beside the evaluator (the one place evaluations are
 //!   counted), and the record of a trial.
-//! - [`runner`]: the trial loop, above optimizers and harness, and a plan's trials in parallel.
-//! - [`suite`]: TOML suites, parameter validation, the plan of trials.
-//! - [`results`]: the result store (traces, summary, provenance), written atomically.
-//! - [`scale`]: resume after a crash, shards and their merge, MPI ranks (feature `mpi`).
-//! - [`report`]: what is printed and rendered from stored results.
+//! - [`optimizer`]: GA, PSO, MSGA (one thread per membrane), CMA-ES, DE, L-BFGS, Nelder-Mead,
+//!   Levenberg-Marquardt, BP and random search; they only see an evaluator.
+//! - [`stats`]: descriptive statistics, intervals, rank tests, ERT.
+//! - [`registry`]: the names suites and commands use for objective and optimizer kinds.
+//! - [`pipeline`]: suite and plan, the trial runner, the result store, a run (resumable,
+//!   sharded), merge and MPI; the one-trial jobs of `fit` and `simulate`.
+//! - [`speed`]: what `optbench bench` measures (evaluation paths, harness overhead).
+//! - [`report`]: tables, figures and the IOHprofiler export of a stored run.
+//! - [`diagnose`]: where a model misses a recording and which physics it left out.
 //! - [`control`]: hysteresis compensation in closed loop (IMC with RBF networks, PID).
+//! - [`cmd`]: the command line, one file per subcommand.
 
 pub mod base;
-pub mod cli;
+pub mod cmd;
 pub mod control;
+pub mod data;
 pub mod diagnose;
-pub mod fitting;
 pub mod harness;
 pub mod objective;
 pub mod optimizer;
 pub mod physics;
-pub mod recording;
+pub mod pipeline;
 pub mod registry;
 pub mod report;
-pub mod results;
-pub mod runner;
-pub mod scale;
-pub mod signal;
-pub mod simulate;
 pub mod speed;
 pub mod stats;
-pub mod suite;
 
 pub use base::error::{Error, Result};

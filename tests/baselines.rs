@@ -9,9 +9,9 @@ use optbench::base::TrialSeed;
 use optbench::harness::{OptimizerConfig, TrialRecord};
 use optbench::objective::Objective;
 use optbench::objective::functions::TestFunction;
+use optbench::pipeline::runner::{RunOptions, TrialSpec, run_suite, run_trial};
+use optbench::pipeline::suite::Suite;
 use optbench::registry::default_optimizer;
-use optbench::runner::{RunOptions, TrialSpec, run_suite, run_trial};
-use optbench::suite::Suite;
 use std::path::Path;
 use std::sync::Arc;
 

@@ -270,7 +270,7 @@ fn shipped_suites_are_valid() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "toml") {
             let text = std::fs::read_to_string(&path).unwrap();
-            let data = optbench::recording::data_dir();
+            let data = optbench::data::recording::data_dir();
             if text.contains("$OPTBENCH_DATA") && !data.exists() {
                 eprintln!(
                     "skipping {}: data not found at {} (set OPTBENCH_DATA)",
@@ -284,7 +284,7 @@ fn shipped_suites_are_valid() {
                     .unwrap_or_else(|e| panic!("{e}"));
                 continue;
             }
-            optbench::suite::Suite::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            optbench::pipeline::suite::Suite::load(&path).unwrap_or_else(|e| panic!("{e}"));
         }
     }
 }

@@ -4,8 +4,8 @@
 mod common;
 
 use common::without_time;
-use optbench::runner::{RunOptions, run_suite};
-use optbench::suite::Suite;
+use optbench::pipeline::runner::{RunOptions, run_suite};
+use optbench::pipeline::suite::Suite;
 use std::path::Path;
 
 const SUITE: &str = r#"
@@ -57,7 +57,7 @@ fn results_do_not_depend_on_thread_count_or_repetition() {
     assert_eq!(one, run(SUITE, 3), "1 thread vs 3 threads");
     assert_eq!(one, run(SUITE, 1), "repeat");
     let summary = |r: &[optbench::harness::TrialRecord]| {
-        let mut s = optbench::results::summarize("determinism", 7, r);
+        let mut s = optbench::pipeline::store::summarize("determinism", 7, r);
         for c in &mut s.results {
             c.wall_s = 0.0;
         }
@@ -98,7 +98,7 @@ kind = "msga"
 kind = "random"
 "#;
     let records = run(text, 2);
-    let summary = optbench::results::summarize("beat-random", 2013, &records);
+    let summary = optbench::pipeline::store::summarize("beat-random", 2013, &records);
     let rs = summary
         .results
         .iter()

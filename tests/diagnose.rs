@@ -133,7 +133,7 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
         .find(|k| k.name() == "asymmetry")
         .unwrap();
     let (t, v) = proof::generate(&kind, 2, 3.0).unwrap();
-    let columns = optbench::recording::Columns::parse("t_s,u_V,y_mm").unwrap();
+    let columns = optbench::data::recording::Columns::parse("t_s,u_V,y_mm").unwrap();
     t.write_csv(&dir.path().join("train.csv"), &columns)
         .unwrap();
     v.write_csv(&dir.path().join("validate.csv"), &columns)
@@ -336,8 +336,8 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
 /// noise.
 #[test]
 fn records_at_different_rates_diagnose_together() {
+    use optbench::data::signal::Signal;
     use optbench::physics::twin::{self, TwinConfig};
-    use optbench::signal::Signal;
     let cfg = TwinConfig::parse_overrides("amp=off,mode=off,delay=0.003").unwrap();
     let record = |spec: &str, dt: f64, seed: u64| {
         let u = Signal::parse(spec).unwrap().sample(dt, 8.0);
@@ -374,7 +374,7 @@ fn command_reads_lab_files_and_resamples_on_request() {
         .find(|k| k.name() == "delay")
         .unwrap();
     let (t, v) = proof::generate(&kind, 1, 2.0).unwrap();
-    let columns = optbench::recording::Columns::parse("t_s,u_V,y_mm").unwrap();
+    let columns = optbench::data::recording::Columns::parse("t_s,u_V,y_mm").unwrap();
     t.write_csv(&dir.path().join("train.csv"), &columns)
         .unwrap();
     v.write_csv(&dir.path().join("validate.csv"), &columns)
@@ -564,7 +564,7 @@ fn command_handles_a_record_starting_in_motion_and_one_with_long_rests() {
 /// piezo has (n pinned at 1 to keep the test short).
 #[test]
 fn the_p885_stack_is_diagnosed_with_its_start_up_found_and_its_creep_flagged() {
-    let dir = optbench::recording::data_dir().join("pea_p885_dbo");
+    let dir = optbench::data::recording::data_dir().join("pea_p885_dbo");
     if !dir.is_dir() {
         eprintln!(
             "skipped: {} is absent (set OPTBENCH_DATA to the data folder)",
@@ -604,7 +604,7 @@ fn the_p885_stack_is_diagnosed_with_its_start_up_found_and_its_creep_flagged() {
     let question = x["question"].as_str().unwrap_or_default();
     assert!(question.contains("does not confirm"), "{text}");
     let spec = x["signal"].as_str().unwrap();
-    let u = optbench::signal::Signal::parse(spec)
+    let u = optbench::data::signal::Signal::parse(spec)
         .unwrap()
         .sample(0.005, x["duration_s"].as_f64().unwrap());
     let (lo, hi) = u
@@ -638,8 +638,8 @@ fn the_p885_stack_is_diagnosed_with_its_start_up_found_and_its_creep_flagged() {
 /// output column.
 #[test]
 fn another_input_driving_the_output_is_reported_as_coupling() {
+    use optbench::data::signal::Signal;
     use optbench::physics::twin::{self, TwinConfig};
-    use optbench::signal::Signal;
     let dir = tempfile::tempdir().unwrap();
     let cfg = TwinConfig::parse_overrides("amp=off,mode=off").unwrap();
     let dt = 1e-3;
@@ -701,9 +701,9 @@ fn another_input_driving_the_output_is_reported_as_coupling() {
 /// alone identifies too little of the loop to predict the triangle.
 #[test]
 fn several_records_at_several_rates_are_fitted_together() {
+    use optbench::data::signal::Signal;
     use optbench::diagnose::diagnose_with_tests;
     use optbench::physics::twin::{self, TwinConfig};
-    use optbench::signal::Signal;
     let cfg = TwinConfig::parse_overrides(
         "amp=off,mode=off,creep.enabled=on,creep.gain_fast=0.04,creep.tau_fast=0.3,creep.gain_slow=0.04,creep.tau_slow=3",
     )
@@ -772,9 +772,9 @@ fn several_records_at_several_rates_are_fitted_together() {
 /// the figures put them on one time axis, each at its own interval.
 #[test]
 fn command_takes_several_records() {
+    use optbench::data::recording::Columns;
+    use optbench::data::signal::Signal;
     use optbench::physics::twin::{self, TwinConfig};
-    use optbench::recording::Columns;
-    use optbench::signal::Signal;
     let cfg = TwinConfig::parse_overrides("amp=off,mode=off,creep=on").unwrap();
     let dir = tempfile::tempdir().unwrap();
     let columns = Columns::parse("t,u,y").unwrap();

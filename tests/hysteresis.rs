@@ -5,6 +5,7 @@ mod common;
 
 use common::{code_and_stderr, lab_csv, optbench, read_json, run_shipped_suite};
 use optbench::base::TrialSeed;
+use optbench::data::recording::{Columns, Recording, data_dir};
 use optbench::harness::OptimizerConfig;
 use optbench::objective::Objective;
 use optbench::objective::hysteresis::{BoucWenFit, RbfFit};
@@ -13,8 +14,7 @@ use optbench::optimizer::gradient::GradientConfig;
 use optbench::optimizer::pso::PsoConfig;
 use optbench::physics::rbf::{Mode, Narx, RbfNet};
 use optbench::physics::twin::TwinConfig;
-use optbench::recording::{Columns, Recording, data_dir};
-use optbench::runner::{TrialSpec, run_trial};
+use optbench::pipeline::runner::{TrialSpec, run_trial};
 use std::path::Path;
 use std::sync::Arc;
 

@@ -9,8 +9,8 @@ use optbench::harness::OptimizerConfig;
 use optbench::objective::Objective;
 use optbench::objective::functions::TestFunction;
 use optbench::optimizer::msga::MsgaConfig;
+use optbench::pipeline::runner::{TrialSpec, run_trial};
 use optbench::registry::{default_optimizer, optimizer_kinds};
-use optbench::runner::{TrialSpec, run_trial};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 

@@ -10,7 +10,6 @@
 //! - [`reference`]: the seed's rising-frequency sinusoids and any signal as a reference.
 
 pub mod closed_loop;
-pub mod command;
 pub mod figures;
 pub mod model;
 pub mod network;
@@ -18,6 +17,7 @@ pub mod pid;
 pub mod plant;
 pub mod reference;
 pub mod run;
+pub mod single;
 pub mod suite;
 
 pub use closed_loop::{Controller, Failure, Guard, Imc, LoopRun, run_loop};

@@ -4,14 +4,14 @@
 
 use crate::base::TrialSeed;
 use crate::base::error::{Error, Result};
+use crate::data::recording::Recording;
 use crate::harness::TrialRecord;
 use crate::objective::Objective;
 use crate::objective::hysteresis::{FitData, FitView, RbfFit};
 use crate::objective::source::{SimOptions, Source};
 use crate::optimizer::pso::PsoConfig;
 use crate::physics::rbf::{Mode, Narx, RbfNet};
-use crate::recording::Recording;
-use crate::runner::{TrialSpec, run_trial};
+use crate::pipeline::runner::{TrialSpec, run_trial};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::sync::Arc;

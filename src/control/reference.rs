@@ -1,9 +1,9 @@
 //! Reference trajectories (mm) for the closed loop: the seed's sinusoids whose frequency
 //! rises with time (§4.2: 1 -> 2, 1 -> 3, 1 -> 4 and 1 -> 10 Hz), or any signal of the
-//! signal library ([`crate::signal`]).
+//! signal library ([`crate::data::signal`]).
 
 use crate::base::error::{Error, Result};
-use crate::signal::{ChirpLaw, Signal};
+use crate::data::signal::{ChirpLaw, Signal};
 use std::f64::consts::FRAC_PI_2;
 
 /// Seconds of the seed's sweeps: the frequency rises linearly over the whole run.

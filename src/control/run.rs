@@ -164,7 +164,7 @@ impl ControllerSpec {
                         "model_swarm" => model.swarm = count(kind, k, v)?,
                         "model_hidden" => model.hidden = count(kind, k, v)?,
                         "model_signal" => {
-                            crate::signal::Signal::parse(v).map_err(|e| {
+                            crate::data::signal::Signal::parse(v).map_err(|e| {
                                 Error::Input(format!("controller `{kind}`: `model_signal`: {e}"))
                             })?;
                             model.signal = v.trim().into();

@@ -39,11 +39,11 @@
 //! of threads.
 
 use super::closed_loop::Guard;
-use super::command::{model_seed, noise_seed, run_csv};
 use super::figures::write_run_figures;
 use super::model::{FittedModel, ModelFitConfig};
 use super::reference::Reference;
 use super::run::{ControllerSpec, DEFAULT_TRANSIENT_S, Metrics, RunSpec};
+use super::single::{model_seed, noise_seed, run_csv};
 use crate::base::error::{Error, Result};
 use crate::base::{TrialSeed, atomic_write};
 use crate::report::paper::{booktabs, latex_escape};
@@ -859,7 +859,7 @@ pub fn run_suite(suite: &ControlSuite, threads: Option<usize>, out: &Path) -> Re
         cells_csv(&results.cells).as_bytes(),
     )?;
     atomic_write(&out.join("report.md"), report.as_bytes())?;
-    let prov = crate::results::Provenance::of_run(
+    let prov = crate::pipeline::store::Provenance::of_run(
         &suite.name,
         &suite.path,
         suite.seed,

@@ -28,10 +28,10 @@
 //!    later rounds, and after every acceptance an effect the model no longer needs is
 //!    dropped (backward step) and the search goes on.
 
-pub mod cli;
 pub mod coupling;
 pub mod plausible;
 pub mod proof;
+pub mod recordings;
 pub mod refit;
 pub mod report;
 pub mod residual;
@@ -41,10 +41,10 @@ pub mod tie;
 use crate::base::TrialSeed;
 use crate::base::error::{Error, Result};
 use crate::base::standard_normal;
+use crate::data::recording::Recording;
 use crate::physics::structure::{
     Context, Effect, Form, Hold, MAX_RECORDS, ParamSpec, Placement, Structure,
 };
-use crate::recording::Recording;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -137,7 +137,7 @@ impl Default for Options {
 
 impl Options {
     /// The exponent the model pins, or an error for an unknown model.
-    fn fixed_n(&self) -> Result<Option<f64>> {
+    pub fn fixed_n(&self) -> Result<Option<f64>> {
         match self.model.as_str() {
             "bouc-wen" => Ok(None),
             "bouc-wen-n1" => Ok(Some(1.0)),

@@ -17,12 +17,13 @@
 
 use super::{Diagnosis, Options, diagnose};
 use crate::base::TrialSeed;
-use crate::base::error::Result;
+use crate::base::atomic_write;
+use crate::base::error::{Error, Result};
 use crate::base::standard_normal;
+use crate::data::recording::Recording;
+use crate::data::signal::Signal;
 use crate::physics::structure::{Context, Effect, Structure};
 use crate::physics::twin::{self, TwinConfig};
-use crate::recording::Recording;
-use crate::signal::Signal;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -296,6 +297,36 @@ pub fn run(
         labels,
     };
     Ok((proof, diagnoses))
+}
+
+/// Runs the proof and writes `proof.md`, `proof.json` (and with `keep` every case's
+/// diagnosis) to `out`; returns the text to print.
+pub fn run_and_write(
+    kinds: &[CaseKind],
+    seeds: &[u64],
+    seconds: f64,
+    opts: &Options,
+    out: &std::path::Path,
+    keep: bool,
+) -> Result<String> {
+    let (p, diagnoses) = run(kinds, seeds, seconds, opts)?;
+    std::fs::create_dir_all(out)
+        .map_err(|e| Error::io(format!("creating {}", out.display()), e))?;
+    if keep {
+        for (label, d) in &diagnoses {
+            super::report::write(d, &out.join(label))?;
+            atomic_write(
+                &out.join(label).join("report.txt"),
+                super::report::text(d).as_bytes(),
+            )?;
+        }
+    }
+    let md = markdown(&p);
+    atomic_write(&out.join("proof.md"), md.as_bytes())?;
+    let mut json = serde_json::to_vec_pretty(&p).expect("serialisable");
+    json.push(b'\n');
+    atomic_write(&out.join("proof.json"), &json)?;
+    Ok(format!("{md}\nwritten: {}\n", out.display()))
 }
 
 /// The proof as Markdown: per-case rows, the confusion matrix and the rates.

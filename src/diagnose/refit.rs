@@ -12,7 +12,7 @@ use crate::optimizer::levenberg_marquardt::LevenbergMarquardtFrom;
 use crate::optimizer::nelder_mead::NelderMead;
 use crate::optimizer::pso::PsoConfig;
 use crate::physics::structure::{LinearFit, Projection, Structure};
-use crate::runner::{TrialSpec, run_trial};
+use crate::pipeline::runner::{TrialSpec, run_trial};
 use rayon::prelude::*;
 use std::sync::{Arc, Mutex};
 

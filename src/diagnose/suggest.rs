@@ -10,10 +10,10 @@
 
 use super::from_rest;
 use super::refit::{self, Fitted};
+use crate::data::signal::Signal;
 #[cfg(test)]
 use crate::physics::structure::Form;
 use crate::report::table::sig;
-use crate::signal::Signal;
 use serde::Serialize;
 use std::sync::Arc;
 
@@ -298,10 +298,10 @@ impl NextExperiment {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::data::recording::Recording;
     use crate::diagnose::{Options, bic, diagnose};
     use crate::physics::structure::{Context, Effect, Placement, Structure};
     use crate::physics::twin::{self, TwinConfig};
-    use crate::recording::Recording;
 
     /// The twin with `overrides`, driven by sines about one level at 200 Hz: on each record
     /// the slow response to that level is a settling trend, which both a creep and a drift

@@ -8,11 +8,11 @@
 
 use super::{Bounds, Metric, Objective, Presentation, PresentationKind};
 use crate::base::error::{Error, Result};
+use crate::data::recording::Recording;
 use crate::physics::bouc_wen::{self, BoucWenParams, SimStatus};
 use crate::physics::bouc_wen_fast::{self, FastInput};
 use crate::physics::rbf::{self, Mode, Narx, RbfNet, Regressors};
 use crate::physics::rbf_fast::RbfBatch;
-use crate::recording::Recording;
 
 /// A recording scaled for fitting.
 #[derive(Debug, Clone)]

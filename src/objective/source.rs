@@ -4,15 +4,15 @@
 //! - a CSV file: `$OPTBENCH_DATA/boucwen-benchmark/test_multisine.csv` (`$OPTBENCH_DATA`
 //!   expands to [`data_dir`]), or a path relative to the suite file's folder; columns are
 //!   picked by name, read with [`ReadOptions`] (suite keys `resample`, `delimiter`);
-//! - `twin:<signal>`: the piezo twin driven by a signal (see [`crate::signal`]), simulated
+//! - `twin:<signal>`: the piezo twin driven by a signal (see [`crate::data::signal`]), simulated
 //!   from a fixed noise seed, so a suite regenerates the same recording every time;
 //! - `eq318:<signal>`: the seed's numerical identification example (eq. 3.18).
 
 use crate::base::error::{Error, Result};
+use crate::data::recording::{Columns, ReadOptions, Recording, data_dir};
+use crate::data::signal::Signal;
 use crate::physics::rbf;
 use crate::physics::twin::{self, TwinConfig};
-use crate::recording::{Columns, ReadOptions, Recording, data_dir};
-use crate::signal::Signal;
 use std::path::{Path, PathBuf};
 
 /// Options that apply to simulated sources.

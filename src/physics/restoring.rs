@@ -314,8 +314,8 @@ impl Oscillator {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::data::recording::{Columns, ReadOptions, Recording, data_dir};
     use crate::physics::linear::Mode;
-    use crate::recording::{Columns, ReadOptions, Recording, data_dir};
     use std::f64::consts::PI;
 
     #[test]

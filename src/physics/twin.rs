@@ -65,7 +65,7 @@ use super::linear::{CreepChain, Delay, LowPass, Mode};
 use crate::base::TrialSeed;
 use crate::base::error::{Error, Result};
 use crate::base::standard_normal;
-use crate::recording::Recording;
+use crate::data::recording::Recording;
 
 /// Drive amplifier (seed: NF As-904). The gain always applies; `enabled` switches its
 /// low-pass (an assumed 2 kHz effective bandwidth into the capacitive bimorph load).

@@ -480,7 +480,7 @@ fn paper_cell(
     cell: &str,
     default_metric: Option<&String>,
 ) -> Option<(f64, (f64, f64))> {
-    let r = crate::suite::CellRef::parse(cell)?;
+    let r = crate::pipeline::suite::CellRef::parse(cell)?;
     let o = a.objectives.iter().find(|o| o.id == r.objective)?;
     let c = o.cells.iter().find(|c| c.optimizer == r.optimizer)?;
     match r.metric.as_ref().or(default_metric) {
@@ -493,7 +493,7 @@ fn paper_cell(
 }
 
 /// A suite's paper-layout table: our median [95 % CI] with the paper's number beside it.
-pub fn paper_table_markdown(t: &crate::suite::PaperTable, a: &Analysis) -> String {
+pub fn paper_table_markdown(t: &crate::pipeline::suite::PaperTable, a: &Analysis) -> String {
     let reference = t.reference.as_deref().unwrap_or("seed");
     let mut header = vec![String::new()];
     header.extend(t.columns.iter().cloned());
@@ -538,7 +538,7 @@ pub fn paper_table_markdown(t: &crate::suite::PaperTable, a: &Analysis) -> Strin
 
 /// The same table in LaTeX (booktabs): ours above, the seed's number below in grey-free
 /// parentheses, so it prints in black and white.
-pub fn paper_table_latex(t: &crate::suite::PaperTable, a: &Analysis) -> String {
+pub fn paper_table_latex(t: &crate::pipeline::suite::PaperTable, a: &Analysis) -> String {
     let caption = format!(
         "{} Ours: median over trials; {} in parentheses.",
         latex_escape(&t.title),

@@ -98,7 +98,7 @@ pub fn read_json(path: &Path) -> serde_json::Value {
 /// printed with 9 decimals and off the grid by up to `jitter` s; `skip` leaves a sample
 /// out (a gap).
 pub fn lab_csv(
-    rec: &optbench::recording::Recording,
+    rec: &optbench::data::recording::Recording,
     path: &Path,
     t0: f64,
     jitter: f64,

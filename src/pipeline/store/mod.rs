@@ -11,9 +11,9 @@
 //!   progress.jsonl    every finished trial, appended as it ends (resume, shards, merge)
 //! ```
 
+pub mod folder;
 pub mod progress;
-pub mod store;
 pub mod summary;
 
-pub use store::{Provenance, read_traces, write_run};
+pub use folder::{Provenance, read_traces, write_run};
 pub use summary::{CellSummary, Summary, summarize};

@@ -1,12 +1,11 @@
-//! The `optbench diagnose` arguments and their dispatch (kept here so `src/cli.rs` only
-//! names the subcommand).
+//! `optbench diagnose`: where a model misses recorded files and what physics it left out, or
+//! (`--proof`) the concealed-effect proof on the twin.
 
-use super::{Options, TestSet, coupling, diagnose_with_tests, proof, report};
-use crate::base::atomic_write;
 use crate::base::error::{Error, Result};
-use crate::objective::source::{read_noting, resolve_path};
+use crate::data::recording::{Columns, Delimiter, ReadOptions};
+use crate::diagnose::recordings::{Files, diagnose_files};
+use crate::diagnose::{Options, proof};
 use crate::physics::structure::{Effect, Hold};
-use crate::recording::{Columns, Delimiter, ReadOptions, Recording, header_names, unit_from_name};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -106,48 +105,7 @@ fn effects(spec: &Option<String>) -> Result<Vec<Effect>> {
         .collect()
 }
 
-fn read(path: &std::path::Path, columns: &Columns, read: &ReadOptions) -> Result<Recording> {
-    let p = resolve_path(&path.to_string_lossy(), std::path::Path::new("."));
-    read_noting(&p, columns, read)
-}
-
-/// The other numeric columns of a file in the input column's unit (`u2_V` beside `u1_V`):
-/// inputs driven at the same time, read like the input (an output or a column that does
-/// not read as numbers is left out).
-fn other_inputs(
-    path: &std::path::Path,
-    columns: &Columns,
-    read_opts: &ReadOptions,
-    trim: f64,
-) -> Vec<(String, Vec<f64>)> {
-    let p = resolve_path(&path.to_string_lossy(), std::path::Path::new("."));
-    let unit = unit_from_name(&columns.input);
-    let Ok(names) = header_names(&p, read_opts) else {
-        return Vec::new();
-    };
-    names
-        .into_iter()
-        .filter(|n| {
-            ![&columns.time, &columns.input, &columns.output].contains(&n)
-                && !unit.is_empty()
-                && unit_from_name(n) == unit
-        })
-        .filter_map(|n| {
-            let c = Columns {
-                input: n.clone(),
-                ..columns.clone()
-            };
-            let r = Recording::read_csv(&p, &c, read_opts)
-                .ok()?
-                .trim_start(trim)
-                .ok()?;
-            Some((n, r.u))
-        })
-        .collect()
-}
-
-/// Runs the command; returns the text to print.
-pub fn run(a: DiagnoseArgs) -> Result<String> {
+pub fn run(a: DiagnoseArgs) -> Result<()> {
     let model = a
         .model
         .clone()
@@ -191,77 +149,25 @@ pub fn run(a: DiagnoseArgs) -> Result<String> {
             }
             kinds.retain(|k| want.contains(&k.name()));
         }
-        let (p, diagnoses) = proof::run(&kinds, &seeds, a.seconds, &opts)?;
-        std::fs::create_dir_all(&out)
-            .map_err(|e| Error::io(format!("creating {}", out.display()), e))?;
-        if a.keep {
-            for (label, d) in &diagnoses {
-                report::write(d, &out.join(label))?;
-                atomic_write(
-                    &out.join(label).join("report.txt"),
-                    report::text(d).as_bytes(),
-                )?;
-            }
-        }
-        let md = proof::markdown(&p);
-        atomic_write(&out.join("proof.md"), md.as_bytes())?;
-        let mut json = serde_json::to_vec_pretty(&p).expect("serialisable");
-        json.push(b'\n');
-        atomic_write(&out.join("proof.json"), &json)?;
-        return Ok(format!("{md}\nwritten: {}\n", out.display()));
+        print!(
+            "{}",
+            proof::run_and_write(&kinds, &seeds, a.seconds, &opts, &out, a.keep)?
+        );
+        return Ok(());
     }
-    let columns = Columns::parse(&a.columns)?;
-    let ropts = ReadOptions {
-        resample: a.resample,
-        delimiter: a.delimiter,
+    let files = Files {
+        train: a.train,
+        validate: a.validate,
+        test: a.test,
+        test_periodic: a.test_periodic,
+        columns: Columns::parse(&a.columns)?,
+        read: ReadOptions {
+            resample: a.resample,
+            delimiter: a.delimiter,
+        },
+        trim_start: a.trim_start,
     };
-    if a.train.is_empty() || a.validate.is_empty() {
-        return Err(Error::Input("--train and --validate are required".into()));
-    }
-    if !(a.trim_start.is_finite() && a.trim_start >= 0.0) {
-        return Err(Error::Input(format!(
-            "--trim-start {}: expected the seconds (>= 0) to leave out at the start of every record",
-            a.trim_start
-        )));
-    }
-    let records = |paths: &[PathBuf]| -> Result<Vec<Recording>> {
-        paths
-            .iter()
-            .map(|p| read(p, &columns, &ropts)?.trim_start(a.trim_start))
-            .collect()
-    };
-    let (train, validate) = (records(&a.train)?, records(&a.validate)?);
-    let mut tests = Vec::new();
-    for (paths, periodic) in [(&a.test, false), (&a.test_periodic, true)] {
-        for p in paths {
-            tests.push(TestSet {
-                recording: read(p, &columns, &ropts)?.trim_start(a.trim_start)?,
-                periodic,
-            });
-        }
-    }
-    let mut d = diagnose_with_tests(&train, &validate, &tests, &opts)?;
-    // Columns every validation file holds, concatenated as the records are.
-    let mut files = a
-        .validate
-        .iter()
-        .map(|v| other_inputs(v, &columns, &ropts, a.trim_start));
-    let mut others = files.next().unwrap_or_default();
-    for here in files {
-        others.retain_mut(|(n, x)| match here.iter().find(|h| &h.0 == n) {
-            Some(more) => {
-                x.extend(&more.1);
-                true
-            }
-            None => false,
-        });
-    }
-    d.couplings = coupling::couplings(&d, &others);
     let out = a.out.unwrap_or_else(|| PathBuf::from("results/diagnose"));
-    report::write(&d, &out)?;
-    Ok(format!(
-        "{}\ndiagnosis.json and figures: {}\n",
-        report::text(&d),
-        out.display()
-    ))
+    print!("{}", diagnose_files(&files, &opts, &out)?);
+    Ok(())
 }

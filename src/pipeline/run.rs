@@ -1,8 +1,8 @@
-//! Running beyond one uninterrupted process: resume after a crash, shards for batch
-//! schedulers, merging shards, and (feature `mpi`) ranks of one MPI job.
+//! One run of a suite: load it with its overrides, open (or resume) its progress log, run
+//! the trials still to do, write the results and hand the folder to the report.
 //!
 //! Every finished trial is appended to `progress.jsonl` in the results folder the moment it
-//! ends (see [`crate::results::progress`]), keyed by a hash of its full configuration
+//! ends (see [`crate::pipeline::store::progress`]), keyed by a hash of its full configuration
 //! ([`trial_key`]). `--resume` reruns only the planned trials whose key is not in the log;
 //! because every trial draws from its own seeded streams, the records, and so
 //! `summary.json`, are the same as those of an uninterrupted run. A log written by another
@@ -14,17 +14,16 @@
 //! shards come from the same suite and build, that every planned trial is there, and writes
 //! one results folder in plan order, identical to a single run's.
 
-#[cfg(feature = "mpi")]
-pub mod mpi;
-
 use crate::base::atomic_write;
 use crate::base::error::{Error, Result};
 use crate::base::hash::stable_hash;
 use crate::harness::TrialRecord;
-use crate::results::progress::{FORMAT, ProgressHeader, ProgressLine, ProgressLog, read_progress};
-use crate::results::{Provenance, write_run};
-use crate::runner::{RunOptions, run_trials};
-use crate::suite::{PlannedTrial, Suite};
+use crate::pipeline::runner::{RunOptions, run_trials};
+use crate::pipeline::store::progress::{
+    FORMAT, ProgressHeader, ProgressLine, ProgressLog, read_progress,
+};
+use crate::pipeline::store::{Provenance, write_run};
+use crate::pipeline::suite::{PlannedTrial, Suite};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -150,7 +149,13 @@ pub struct RunRequest {
     pub resume: bool,
     pub force_resume: bool,
     pub shard: Option<Shard>,
+    /// Writes the report of a finished results folder and returns its main table (the
+    /// command passes `report::generate`; the pipeline sits below the report).
+    pub report: Option<Report>,
 }
+
+/// See [`RunRequest::report`].
+pub type Report = fn(&Path) -> Result<String>;
 
 /// The suite with its overrides, where its results go, and its (share of the) plan.
 pub struct Prepared {
@@ -285,7 +290,7 @@ pub fn open_log(
                 unique(&old.lines),
                 old.header.planned,
                 p.out
-                    .join(crate::results::progress::PROGRESS_FILE)
+                    .join(crate::pipeline::store::progress::PROGRESS_FILE)
                     .display()
             )));
         }
@@ -306,18 +311,9 @@ fn unique(lines: &[ProgressLine]) -> usize {
         .len()
 }
 
-/// Runs (or resumes) a suite or one shard of it; returns the text to print. Built with
-/// the `mpi` feature and started by `mpirun`, the trials are spread over the ranks.
+/// Runs (or resumes) a suite, or one shard of it, in this process on its thread pool; returns
+/// the text to print (`cmd::run` hands MPI-launched runs to [`crate::pipeline::scale::mpi`]).
 pub fn run(req: &RunRequest) -> Result<String> {
-    #[cfg(feature = "mpi")]
-    if mpi::launched_by_mpirun() {
-        return mpi::run(req);
-    }
-    run_local(req)
-}
-
-/// [`run`] in this process, on its thread pool.
-pub fn run_local(req: &RunRequest) -> Result<String> {
     let started = std::time::SystemTime::now();
     let p = prepare(req)?;
     let (log, mut done) = open_log(&p, req.resume, req.force_resume)?;
@@ -351,7 +347,9 @@ pub fn run_local(req: &RunRequest) -> Result<String> {
                 .unwrap_or_else(|| fresh.next().expect("one fresh record per trial run"))
         })
         .collect();
-    finish(&p, &records, threads, started, reused, req.quiet)
+    finish(
+        &p, &records, threads, started, reused, req.quiet, req.report,
+    )
 }
 
 /// Writes the results of a finished run (or shard) and returns the text to print.
@@ -362,6 +360,7 @@ pub fn finish(
     started: std::time::SystemTime,
     reused: usize,
     quiet: bool,
+    report: Option<Report>,
 ) -> Result<String> {
     let provenance = Provenance::new(&p.suite, threads, started);
     let resumed = if reused > 0 {
@@ -389,7 +388,10 @@ pub fn finish(
         });
     }
     write_run(&p.out, &p.suite, records, &provenance)?;
-    let table = crate::report::generate(&p.out)?;
+    let table = match report {
+        Some(generate) => generate(&p.out)?,
+        None => String::new(),
+    };
     Ok(if quiet {
         String::new()
     } else {
@@ -401,155 +403,6 @@ pub fn finish(
             threads,
             provenance.wall_s,
             p.out.display()
-        )
-    })
-}
-
-/// Combines the results folders of shards (or of any runs of the same suite and build)
-/// into `out`, exactly as one run of the whole plan would have written it.
-pub fn merge(dirs: &[PathBuf], out: &Path, quiet: bool) -> Result<String> {
-    let mut logs = Vec::new();
-    for d in dirs {
-        let p = read_progress(d)?.ok_or_else(|| {
-            Error::Input(format!(
-                "{}: no {} (not a results folder of `optbench run`, or a run from before resumable logs)",
-                d.display(),
-                crate::results::progress::PROGRESS_FILE
-            ))
-        })?;
-        logs.push((d, p));
-    }
-    let Some((first_dir, first)) = logs.first() else {
-        return Err(Error::Input(
-            "merge: name at least one results folder".into(),
-        ));
-    };
-    let h0 = first.header.clone();
-    for (d, p) in &logs[1..] {
-        let h = &p.header;
-        if h.fingerprint != h0.fingerprint {
-            return Err(Error::Input(format!(
-                "{}: suite `{}` (seed {}, {} trials, budget {:?}) is not the run of {} (suite `{}`, seed {}, {} trials, budget {:?}); only shards of the same suite and overrides merge",
-                d.display(),
-                h.suite,
-                h.seed,
-                h.trials,
-                h.budget,
-                first_dir.display(),
-                h0.suite,
-                h0.seed,
-                h0.trials,
-                h0.budget
-            )));
-        }
-        if h.build != h0.build {
-            return Err(Error::Input(format!(
-                "{}: built by `{}`, but {} by `{}`; shards must come from the same build",
-                d.display(),
-                h.build,
-                first_dir.display(),
-                h0.build
-            )));
-        }
-    }
-    let text_path = first_dir.join("suite.toml");
-    let text = std::fs::read_to_string(&text_path)
-        .map_err(|e| Error::Input(format!("{}: cannot read: {e}", text_path.display())))?;
-    // Parse as the original file, so its relative paths resolve as they did in the run.
-    let origin = PathBuf::from(&h0.suite_file);
-    let origin = if origin.exists() { origin } else { text_path };
-    let mut suite = Suite::parse(&text, &origin)?;
-    Overrides {
-        trials: Some(h0.trials),
-        seed: Some(h0.seed),
-        budget: h0.budget,
-    }
-    .apply(&mut suite);
-    if fingerprint(&suite, h0.budget) != h0.fingerprint {
-        return Err(Error::Input(format!(
-            "{}: suite.toml does not match its progress log (edited after the run?)",
-            first_dir.display()
-        )));
-    }
-    let plan = suite.plan();
-    let keys: Vec<String> = plan.iter().map(|t| trial_key(&suite, t)).collect();
-    let mut found: HashMap<String, TrialRecord> = HashMap::new();
-    let mut threads = 0;
-    let mut earliest: Option<std::time::SystemTime> = None;
-    let mut shards = Vec::new();
-    for (d, p) in logs {
-        // Threads of each shard, from its provenance (absent: counted as 0).
-        threads += std::fs::read_to_string(d.join("provenance.json"))
-            .ok()
-            .and_then(|t| serde_json::from_str::<Provenance>(&t).ok())
-            .map_or(0, |p| p.threads);
-        if let Ok(t) = humantime::parse_rfc3339(&p.header.started) {
-            earliest = Some(earliest.map_or(t, |e| e.min(t)));
-        }
-        shards.push(match p.header.shard {
-            Some((k, n)) => format!("{k}/{n}"),
-            None => "all".into(),
-        });
-        for l in p.lines {
-            found.entry(l.key).or_insert(l.record);
-        }
-    }
-    let missing: Vec<&PlannedTrial> = plan
-        .iter()
-        .zip(&keys)
-        .filter(|(_, k)| !found.contains_key(*k))
-        .map(|(t, _)| t)
-        .collect();
-    if let Some(t) = missing.first() {
-        return Err(Error::Input(format!(
-            "merge: {} of {} planned trials are missing (shards given: {}), e.g. objective `{}`, optimizer `{}`, trial {}; run the missing shards (or `--resume` the unfinished ones) first",
-            missing.len(),
-            plan.len(),
-            shards.join(", "),
-            suite.objectives[t.objective].id,
-            suite.optimizers[t.optimizer].id,
-            t.trial
-        )));
-    }
-    let records: Vec<TrialRecord> = keys
-        .iter()
-        .map(|k| found.remove(k).expect("checked"))
-        .collect();
-    std::fs::create_dir_all(out)
-        .map_err(|e| Error::io(format!("creating {}", out.display()), e))?;
-    let header = ProgressHeader {
-        shard: None,
-        planned: plan.len(),
-        started: earliest
-            .map(|t| humantime::format_rfc3339_seconds(t).to_string())
-            .unwrap_or(h0.started.clone()),
-        ..h0
-    };
-    let lines: Vec<ProgressLine> = keys
-        .iter()
-        .zip(&records)
-        .map(|(k, r)| ProgressLine {
-            key: k.clone(),
-            record: r.clone(),
-        })
-        .collect();
-    ProgressLog::create(out, &header, &lines)?;
-    let p = Prepared {
-        suite,
-        out: out.to_path_buf(),
-        plan,
-        keys,
-        header,
-    };
-    let started = earliest.unwrap_or_else(std::time::SystemTime::now);
-    let text = finish(&p, &records, threads, started, 0, quiet)?;
-    Ok(if quiet {
-        text
-    } else {
-        format!(
-            "merged {} shards ({})\n{text}",
-            shards.len(),
-            shards.join(", ")
         )
     })
 }

@@ -7,7 +7,7 @@ pub use trial::{TrialSpec, run_trial};
 
 use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
-use crate::suite::{PlannedTrial, Suite};
+use crate::pipeline::suite::{PlannedTrial, Suite};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use std::sync::Arc;

@@ -13,10 +13,10 @@
 //! Every rank reads the suite itself, so the suite file (and any recording it names) must be
 //! readable at the same path on every node.
 
-use super::{RunRequest, finish, open_log, prepare, run_local};
 use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
-use crate::runner::run_planned;
+use crate::pipeline::run::{RunRequest, finish, open_log, prepare, run as run_local};
+use crate::pipeline::runner::run_planned;
 use ::mpi::Threading;
 use ::mpi::topology::SimpleCommunicator;
 use ::mpi::traits::*;
@@ -187,5 +187,13 @@ fn coordinate(req: &RunRequest, world: &SimpleCommunicator) -> Result<String> {
                 .expect("every planned trial finished")
         })
         .collect();
-    finish(&p, &records, size as usize, started, reused, req.quiet)
+    finish(
+        &p,
+        &records,
+        size as usize,
+        started,
+        reused,
+        req.quiet,
+        req.report,
+    )
 }

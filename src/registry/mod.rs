@@ -2,6 +2,7 @@
 
 use crate::base::error::Error;
 use crate::base::params::{Default as D, Kind, Params, Spec, probability};
+use crate::data::recording::{Delimiter, ReadOptions, Recording};
 use crate::harness::OptimizerConfig;
 use crate::objective::functions::{Function, TestFunction};
 use crate::objective::hysteresis::{BoucWenFit, BoucWenScheme, RbfFit};
@@ -15,7 +16,6 @@ use crate::optimizer::operators::Mutation;
 use crate::optimizer::pso::PsoConfig;
 use crate::optimizer::random_search::RandomSearchConfig;
 use crate::physics::rbf::{Mode, Narx, RbfNet};
-use crate::recording::{Delimiter, ReadOptions, Recording};
 use std::path::Path;
 use std::sync::Arc;
 

@@ -4,7 +4,7 @@ use super::summary::{Summary, summarize};
 use crate::base::atomic_write;
 use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
-use crate::suite::Suite;
+use crate::pipeline::suite::Suite;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 

@@ -7,6 +7,7 @@
 //! benches (`benches/models.rs`), which give the detailed view.
 
 use crate::base::TrialSeed;
+use crate::data::recording::Recording;
 use crate::harness::Evaluator;
 use crate::objective::functions::{Function, TestFunction};
 use crate::objective::hysteresis::BoucWenFit;
@@ -17,8 +18,7 @@ use crate::physics::bouc_wen_fast::{self, FastInput};
 use crate::physics::fixtures;
 use crate::physics::rbf::{self, Mode, Narx, RbfNet, Regressors};
 use crate::physics::rbf_fast::RbfBatch;
-use crate::recording::Recording;
-use crate::runner::{TrialSpec, run_trial};
+use crate::pipeline::runner::{TrialSpec, run_trial};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;

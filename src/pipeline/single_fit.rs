@@ -11,9 +11,9 @@ use crate::base::params::{Origin, Params};
 use crate::base::{TrialSeed, atomic_write};
 use crate::harness::TrialRecord;
 use crate::objective::Objective;
+use crate::pipeline::runner::{TrialSpec, run_trial};
 use crate::registry::{objective_kinds, optimizer_kinds};
 use crate::report::{plots, table::sig};
-use crate::runner::{TrialSpec, run_trial};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -30,7 +30,7 @@ pub struct FitRequest {
     /// Interpolate CSV recordings with gaps or irregular time onto a uniform grid.
     pub resample: bool,
     /// Column separator of CSV recordings (`None`: detected).
-    pub delimiter: Option<crate::recording::Delimiter>,
+    pub delimiter: Option<crate::data::recording::Delimiter>,
     /// Seconds left out at the start of every recording.
     pub trim_start: Option<f64>,
     pub budget: u64,

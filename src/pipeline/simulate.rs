@@ -2,9 +2,9 @@
 //! (sinusoids at 1, 4, 10, 20 and 28 Hz and the validation signal of Fig. 3.27(b)).
 
 use crate::base::error::{Error, Result};
+use crate::data::recording::Columns;
+use crate::data::signal::seed_experiments;
 use crate::objective::source::{SimOptions, Source};
-use crate::recording::Columns;
-use crate::signal::seed_experiments;
 use std::path::{Path, PathBuf};
 
 /// What to simulate.

@@ -1,0 +1,43 @@
+//! `optbench bench`: evaluation speed on this machine (see [`crate::speed`]).
+
+use crate::base::error::{Error, Result};
+use crate::speed::{BenchConfig, run as measure};
+
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// A few seconds instead of about a minute (smaller records and populations).
+    #[arg(long)]
+    pub quick: bool,
+    /// Threads for the all-thread figures (default: one per core).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub threads: Option<u32>,
+    /// Also write the figures as JSON to this file (read by scripts/compare-peers).
+    #[arg(long)]
+    pub json: Option<std::path::PathBuf>,
+}
+
+pub fn run(a: BenchArgs) -> Result<()> {
+    let cfg = if a.quick {
+        BenchConfig::quick()
+    } else {
+        BenchConfig::full()
+    };
+    let report = match a.threads {
+        Some(t) => rayon::ThreadPoolBuilder::new()
+            .num_threads(t as usize)
+            .build()
+            .map_err(|e| Error::Input(format!("thread pool: {e}")))?
+            .install(|| measure(&cfg)),
+        None => measure(&cfg),
+    };
+    print!("{}", report.render());
+    if let Some(path) = &a.json {
+        let text = serde_json::to_string_pretty(&report.to_json())
+            .map_err(|e| Error::Input(format!("bench JSON: {e}")))?;
+        std::fs::write(path, text).map_err(|source| Error::Io {
+            context: path.display().to_string(),
+            source,
+        })?;
+    }
+    Ok(())
+}

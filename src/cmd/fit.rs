@@ -1,0 +1,80 @@
+//! `optbench fit`: one model fitted to one recording (or several) with one optimizer.
+
+use crate::base::error::Result;
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct FitArgs {
+    /// Training recording: a CSV file, twin:SIGNAL or eq318:SIGNAL (see `optbench list`).
+    /// Repeatable: several records fitted together (parameters shared, costs summed; with
+    /// `--param d0=true` an offset per record; bouc-wen also fits each record's initial
+    /// hysteretic state, `--param h0=false` starts them from rest).
+    #[arg(long, required = true)]
+    pub recording: Vec<String>,
+    /// Held-out recording (same forms); the model is never fitted to it. Repeatable. With
+    /// several records (training or validation), bouc-wen refits each validation record's
+    /// own offset (with d0) and initial state on it, the actuator's parameters held fixed
+    /// (`--param refit_validation=never` keeps the seed's protocol).
+    #[arg(long)]
+    pub validate: Vec<String>,
+    /// Model to fit (a fitting objective of `optbench list`, e.g. bouc-wen or rbf).
+    #[arg(long)]
+    pub model: String,
+    /// Optimizer (ga, pso, msga, bp, random).
+    #[arg(long, default_value = "msga")]
+    pub optimizer: String,
+    /// Time, input and output column names of CSV recordings.
+    #[arg(long, default_value = "t,u,y")]
+    pub columns: String,
+    /// CSV recordings with gaps or irregular time stamps are linearly interpolated onto a
+    /// uniform grid (jitter within 1 % of the step is accepted without it).
+    #[arg(long)]
+    pub resample: bool,
+    /// Column separator of CSV recordings: ',', ';', tab or whitespace (default: detected;
+    /// decimal commas are detected).
+    #[arg(long)]
+    pub delimiter: Option<crate::data::recording::Delimiter>,
+    /// Seconds left out at the start of every CSV recording (training and validation): for
+    /// records that start in motion (`diagnose` reports such a start-up).
+    #[arg(long, allow_negative_numbers = true)]
+    pub trim_start: Option<f64>,
+    /// Function evaluations (default: the seed's 200 individuals x 150 iterations).
+    #[arg(long, default_value_t = 30_000)]
+    pub budget: u64,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Model parameter, repeatable: --param mode=free-run --param hidden=9.
+    #[arg(long = "param", value_name = "KEY=VALUE")]
+    pub params: Vec<String>,
+    /// Optimizer parameter, repeatable: --opt population=100.
+    #[arg(long = "opt", value_name = "KEY=VALUE")]
+    pub opt: Vec<String>,
+    /// Output folder (default: results/fit-MODEL-OPTIMIZER).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+pub fn run(a: FitArgs) -> Result<()> {
+    let out = a.out.clone().unwrap_or_else(|| {
+        PathBuf::from("results").join(format!("fit-{}-{}", a.model, a.optimizer))
+    });
+    print!(
+        "{}",
+        crate::pipeline::single_fit::run_fit(&crate::pipeline::single_fit::FitRequest {
+            model: a.model,
+            optimizer: a.optimizer,
+            recording: a.recording.join(" | "),
+            validate: (!a.validate.is_empty()).then(|| a.validate.join(" | ")),
+            columns: a.columns,
+            resample: a.resample,
+            delimiter: a.delimiter,
+            trim_start: a.trim_start,
+            budget: a.budget,
+            seed: a.seed,
+            model_params: a.params,
+            optimizer_params: a.opt,
+            out,
+        })?
+    );
+    Ok(())
+}

@@ -1,0 +1,79 @@
+//! The command layer: one file per subcommand, each parsing its arguments and calling the
+//! library; nothing below imports it.
+
+pub mod bench;
+pub mod control;
+pub mod diagnose;
+pub mod fit;
+pub mod list;
+pub mod merge;
+pub mod report;
+pub mod run;
+pub mod simulate;
+
+use crate::base::error::Result;
+use clap::{Parser, Subcommand};
+
+/// Reproducible benchmarks of optimizers on test functions and hysteresis fitting.
+#[derive(Parser, Debug)]
+#[command(name = "optbench", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Run every trial of a suite, write results/NAME/ (NAME from the suite) and its report.
+    Run(run::RunArgs),
+    /// Regenerate the report (tables, plots, IOHprofiler export) of a results folder from
+    /// its stored traces; with two folders of the same suite, compare them.
+    Report(report::ReportArgs),
+    /// Combine the results folders of `run --shard K/N` (or of resumable runs of the same
+    /// suite) into one, identical to a single run's.
+    Merge(merge::MergeArgs),
+    /// Fit one model to one recording with one optimizer; numbers and figures in --out.
+    Fit(fit::FitArgs),
+    /// Write piezo-twin recordings: the seed's experiments, or one --signal.
+    Simulate(simulate::SimulateArgs),
+    /// Locate where a hysteresis model misses a recording, name the missing physics and
+    /// fit the better model (or, with --proof, run the concealed-effect proof).
+    Diagnose(diagnose::DiagnoseArgs),
+    /// List objectives and optimizers with their parameters and defaults.
+    List,
+    /// Measure evaluation speed on this machine: scalar, batched and all-thread paths of
+    /// every objective kind, harness overhead, MSGA threads.
+    Bench(bench::BenchArgs),
+    /// Closed-loop hysteresis compensation on the twin: IMC with two RBF networks or
+    /// incremental PID tracking a reference; signals, numbers and figures in --out.
+    Control(control::ControlArgs),
+}
+
+/// Entry point: returns the process exit code.
+pub fn main() -> i32 {
+    let cli = Cli::parse();
+    match dispatch(cli) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {e}");
+            e.exit_code()
+        }
+    }
+}
+
+fn dispatch(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Run(a) => run::run(a),
+        Command::Report(a) => report::run(a),
+        Command::Merge(a) => merge::run(a),
+        Command::Fit(a) => fit::run(a),
+        Command::Simulate(a) => simulate::run(a),
+        Command::Diagnose(a) => diagnose::run(a),
+        Command::List => {
+            list::run();
+            Ok(())
+        }
+        Command::Bench(a) => bench::run(a),
+        Command::Control(a) => control::run(a),
+    }
+}
