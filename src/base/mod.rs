@@ -5,6 +5,7 @@
 pub mod atomic;
 pub mod error;
 pub mod hash;
+pub mod lstsq;
 pub mod params;
 pub mod seed;
 

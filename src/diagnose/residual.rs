@@ -184,7 +184,7 @@ fn ar_fit(x: &[f64], p: usize) -> Vec<f64> {
         return vec![0.0; p];
     }
     let cols: Vec<Vec<f64>> = (1..=p).map(|i| x[p - i..n - i].to_vec()).collect();
-    crate::physics::structure::least_squares(&cols, &x[p..])
+    crate::base::lstsq::least_squares(&cols, &x[p..])
 }
 
 /// `x` through the whitening filter `1 - Σ a_i z^-i` (first `p` samples dropped).
@@ -520,7 +520,7 @@ pub fn locate(u: &[f64], e: &[f64], dt: f64, noise: f64, unit: &str) -> Vec<Loca
     // Slow trend: share of the residual's power in a linear + quadratic trend of time.
     let t: Vec<f64> = (0..n).map(|k| k as f64 / n as f64).collect();
     let t2: Vec<f64> = t.iter().map(|x| x * x).collect();
-    let coef = crate::physics::structure::least_squares(&[vec![1.0; n], t.clone(), t2.clone()], e);
+    let coef = crate::base::lstsq::least_squares(&[vec![1.0; n], t.clone(), t2.clone()], e);
     let trend: Vec<f64> = (0..n)
         .map(|k| coef[0] + coef[1] * t[k] + coef[2] * t2[k])
         .collect();

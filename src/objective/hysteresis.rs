@@ -320,6 +320,14 @@ impl FitView for RbfFit {
     }
 }
 
+/// One point as a batch of one: the fits' batch path is their only evaluation path, so a
+/// single evaluation cannot differ from the same point inside a population.
+fn one_of_batch(o: &impl Objective, p: &[f64]) -> f64 {
+    let mut out = [0.0];
+    o.evaluate_batch(p, &mut out);
+    out[0]
+}
+
 impl Objective for RbfFit {
     fn name(&self) -> &str {
         "rbf"
@@ -330,9 +338,7 @@ impl Objective for RbfFit {
     }
 
     fn evaluate(&self, p: &[f64]) -> f64 {
-        let mut out = [0.0];
-        self.evaluate_batch(p, &mut out);
-        out[0]
+        one_of_batch(self, p)
     }
 
     /// The sum over training records.
@@ -748,9 +754,7 @@ impl Objective for BoucWenFit {
     }
 
     fn evaluate(&self, p: &[f64]) -> f64 {
-        let mut out = [0.0];
-        self.evaluate_batch(p, &mut out);
-        out[0]
+        one_of_batch(self, p)
     }
 
     /// The sum over training records.

@@ -1,0 +1,398 @@
+//! The regressor columns of a shape: the model simulated with its linear coefficients left
+//! free, for variable projection.
+
+use super::*;
+
+impl Structure {
+    /// Simulates the regressor columns on input `u`: `[v, 1, -(1+ρr) α-free g]` after the
+    /// post-hysteresis filters, plus the drift columns; column-major, `cols[j][k]`.
+    pub(super) fn columns(&self, theta: &[f64], u: &[f64]) -> (Vec<Vec<f64>>, Status) {
+        if let Some(r) = &self.records {
+            return r.columns(theta, u);
+        }
+        let (varying, status) = self.varying_columns(theta, u);
+        (self.assemble(varying, u.len()), status)
+    }
+
+    /// The columns that depend on the shape, in coefficient order without
+    /// [`Self::fixed_columns`]: `[v, g, creep states]` (or `[y, creep states]` in the
+    /// feedback placement).
+    pub(super) fn varying_columns(&self, theta: &[f64], u: &[f64]) -> (Vec<Vec<f64>>, Status) {
+        if let Some(r) = &self.records {
+            return r.varying_columns(theta, u);
+        }
+        let n = u.len();
+        let sh = self.shape(theta);
+        if self.placement == Placement::Feedback {
+            return self.columns_feedback(&sh, u);
+        }
+        let ctx = &self.ctx;
+        let dt = ctx.dt;
+        let mut cv = vec![0.0; n];
+        let mut cg = vec![0.0; n];
+        let mut status = Status::Ok;
+        if n == 0 {
+            return (vec![cv, cg], status);
+        }
+        let finite_shape = sh.is_finite();
+        let u = &if finite_shape {
+            shift(u, sh.input_shift(self), sh.curvature.clamp(0.0, 1.0))
+        } else {
+            u.to_vec()
+        };
+        // Direction asymmetry: the hysteretic slope is 1 + a on rising drive, 1 - a falling.
+        let up = self.kernel(&sh, 1.0 + sh.dir_a);
+        let down = if sh.dir_a != 0.0 {
+            self.kernel(&sh, 1.0 - sh.dir_a)
+        } else {
+            up
+        };
+        let drive = sh.drive(ctx.u_ref);
+        let mut lag =
+            (self.has(Effect::InputLag) && sh.lag > 0.0).then(|| LowPass::new(sh.lag, dt));
+        let mut lag2 = (self.has(Effect::InputLag) && sh.lag2_hz.is_finite())
+            .then(|| Mode::new(sh.lag2_hz, sh.lag2_zeta.max(0.0), dt));
+        let mut rate =
+            (self.has(Effect::RateDependence) && sh.rho != 0.0).then(|| LowPass::new(sh.tau_r, dt));
+        let exp_tau = lag.as_ref().map(|_| sh.lag);
+        let with_hold_lp = |l: LowPass| match exp_tau {
+            Some(t) => l.with_exp_hold(t),
+            None => l,
+        };
+        let mut creep: Vec<(f64, LowPass, LowPass)> = match self.form(Effect::Creep) {
+            Some(form) => sh
+                .creep_elements(form, ctx)
+                .into_iter()
+                .filter(|(g, _)| *g != 0.0)
+                .map(|(g, tau)| {
+                    (
+                        g,
+                        with_hold_lp(LowPass::new(tau, dt)),
+                        with_hold_lp(LowPass::new(tau, dt)),
+                    )
+                })
+                .collect(),
+            None => Vec::new(),
+        };
+        let mk_mode = |f: f64, zeta: f64| {
+            let m = Mode::new(f, zeta.max(0.0), dt);
+            match exp_tau {
+                Some(t) => m.with_exp_hold(t),
+                None => m,
+            }
+        };
+        let mut mode = (self.has(Effect::Dynamics) && sh.mode_p > 0.0).then(|| {
+            let f = 1.0 / (2.0 * std::f64::consts::PI * sh.mode_p);
+            (mk_mode(f, sh.zeta), mk_mode(f, sh.zeta))
+        });
+        let share = sh.mode2_share.clamp(0.0, 1.0);
+        let mut mode2 = (self.has(Effect::Dynamics) && sh.mode2_hz.is_finite() && share > 0.0)
+            .then(|| {
+                (
+                    mk_mode(sh.mode2_hz, sh.mode2_zeta),
+                    mk_mode(sh.mode2_hz, sh.mode2_zeta),
+                )
+            });
+
+        // Initial state: every block at rest at the first sample.
+        let u0 = u[0];
+        if let Some(l) = &mut lag {
+            l.settle(u0);
+        }
+        if let Some(l) = &mut lag2 {
+            l.settle(u0);
+        }
+        let v0 = drive(u0);
+        // The rate's memory starts at the rate the record starts with: a record cut from a
+        // running excitation starts in motion, and memory at rest would add a start-up
+        // transient of the rate time constant that a drift or creep then soaks up.
+        let rate0 = (u.get(1).map_or(v0, |&x| drive(x)) - v0).abs() / dt;
+        if let Some(r) = &mut rate {
+            r.settle(rate0);
+        }
+        // The hysteretic state at the first sample; the linear blocks after it at rest there.
+        let mut g = sh.g0.clamp(-1.0, 1.0) * sh.g0_scale(ctx.u_ref);
+        let g_init = if g.is_finite() { g } else { 0.0 };
+        for (_, a, b) in &mut creep {
+            a.settle(v0);
+            b.settle(-g_init);
+        }
+        let k_dc = 1.0 + creep.iter().map(|c| c.0).sum::<f64>();
+        for (a, b) in mode.iter_mut().chain(mode2.iter_mut()) {
+            a.settle(k_dc * v0);
+            b.settle(-k_dc * g_init);
+        }
+        let bound = 1e6 * (1.0 + ctx.u_ref) * (1.0 + u.iter().fold(0.0f64, |m, x| m.max(x.abs())));
+        let mut v_prev = v0;
+        // Previous inputs of the linear blocks, for the hold (`block_hold`): the drive
+        // into the lag; without a lag, the hysteresis output into creep and modes (with a
+        // lag, their inputs are continuous and the exponential hold is exact).
+        let hold = sh.block_hold.clamp(0.0, 1.0);
+        let held = |x: f64, prev: &mut f64| {
+            let r = x - hold * (x - *prev);
+            *prev = x;
+            r
+        };
+        let hold_after = lag.is_none() && hold > 0.0;
+        let mut prev_u = u0;
+        let (mut prev_a0, mut prev_b0) = (v0, -g_init);
+        let (mut prev_am, mut prev_bm) = (k_dc * v0, -k_dc * g_init);
+        let step_mode = |m: &mut Mode, x: f64| {
+            if exp_tau.is_some() {
+                m.step_exp(x)
+            } else {
+                m.step(x)
+            }
+        };
+        for k in 0..n {
+            let mut x = u[k];
+            if let Some(l) = &mut lag {
+                x = l.step(held(x, &mut prev_u));
+            }
+            if let Some(l) = &mut lag2 {
+                x = l.step(x);
+            }
+            let v = drive(x);
+            let dv = v - v_prev;
+            let rr = rate.as_mut().map_or(0.0, |r| {
+                r.step(if k == 0 { rate0 } else { dv.abs() / dt }) / ctx.rate_ref
+            });
+            let advance = |g: f64, dv: f64| {
+                if dv >= 0.0 {
+                    up.advance(g, dv)
+                } else {
+                    down.advance(g, dv)
+                }
+            };
+            let mut vv = v;
+            if sh.rate_gain {
+                vv *= 1.0 + sh.rho * rr;
+                g = advance(g, dv);
+            } else if rr != 0.0 {
+                // The slope inside the equation scales with the rate: dg = dv (kα - c|g|^n).
+                // With g = k^(1/n) g' that is the plain equation in g' over k^(1-1/n) dv, so
+                // the state keeps the memory of earlier rates (the width is not rescaled at
+                // once when the rate falls).
+                let k = (1.0 + sh.rho * rr).max(1e-6);
+                let kn = if sh.n == 1.0 { k } else { k.powf(1.0 / sh.n) };
+                g = kn * advance(g / kn, dv * k / kn);
+            } else {
+                g = advance(g, dv);
+            }
+            v_prev = v;
+            let (mut a, mut b) = (vv, -g);
+            let (a0, b0) = if hold_after && !creep.is_empty() {
+                (held(a, &mut prev_a0), held(b, &mut prev_b0))
+            } else {
+                (a, b)
+            };
+            for (gain, ca, cb) in &mut creep {
+                let (la, lb) = if exp_tau.is_some() {
+                    (ca.step_exp(a0), cb.step_exp(b0))
+                } else {
+                    (ca.step(a0), cb.step(b0))
+                };
+                a += *gain * la;
+                b += *gain * lb;
+            }
+            if hold_after && (mode.is_some() || mode2.is_some()) {
+                a = held(a, &mut prev_am);
+                b = held(b, &mut prev_bm);
+            }
+            match (&mut mode, &mut mode2) {
+                (Some((ma, mb)), Some((na, nb))) => {
+                    let (a1, b1) = (step_mode(ma, a), step_mode(mb, b));
+                    let (a2, b2) = (step_mode(na, a), step_mode(nb, b));
+                    a = (1.0 - share) * a1 + share * a2;
+                    b = (1.0 - share) * b1 + share * b2;
+                }
+                (Some((ma, mb)), None) | (None, Some((ma, mb))) => {
+                    a = step_mode(ma, a);
+                    b = step_mode(mb, b);
+                }
+                (None, None) => {}
+            }
+            if !(finite_shape && a.is_finite() && b.is_finite() && g.abs() <= bound) {
+                status = Status::Unstable { at: k };
+                cv[k..].fill(0.0);
+                cg[k..].fill(0.0);
+                break;
+            }
+            cv[k] = a;
+            cg[k] = b;
+        }
+        let mut cols = vec![cv, cg];
+        cols.extend(self.state_columns(&sh, n));
+        (cols, status)
+    }
+
+    /// The columns that do not depend on the shape: the constant and the drift (`t/T,
+    /// (t/T)²`, or the spline's hat functions over the record's own length).
+    pub(super) fn fixed_columns(&self, n: usize) -> Vec<Vec<f64>> {
+        if let Some(r) = &self.records {
+            return r.fixed_columns();
+        }
+        let dt = self.ctx.dt;
+        let mut cols = vec![vec![1.0; n]];
+        match self.form(Effect::OffsetDrift) {
+            Some(Form::Spline) => {
+                // Hats at knots 1..=m over [0, n-1]; the constant column spans knot 0.
+                let m = spline_segments(&self.ctx);
+                let width = (n.max(2) - 1) as f64 / m as f64;
+                for j in 1..=m {
+                    let c = j as f64 * width;
+                    cols.push(
+                        (0..n)
+                            .map(|k| (1.0 - (k as f64 - c).abs() / width).max(0.0))
+                            .collect(),
+                    );
+                }
+            }
+            Some(Form::Settling) | None => {}
+            Some(_) => {
+                let t: Vec<f64> = (0..n).map(|k| k as f64 * dt / self.ctx.t_ref).collect();
+                let t2 = t.iter().map(|x| x * x).collect();
+                cols.push(t);
+                cols.push(t2);
+            }
+        }
+        cols
+    }
+
+    /// Indices of [`Self::fixed_columns`] among the coefficients (the constant is always 1;
+    /// the drift follows the hysteretic column after the hysteresis, the constant in the
+    /// feedback placement).
+    pub(super) fn fixed_indices(&self) -> Vec<usize> {
+        if let Some(r) = &self.records {
+            return r.fixed_indices();
+        }
+        let drift = self.fixed_columns(0).len() - 1;
+        let first = match self.placement {
+            Placement::After => 3,
+            Placement::Feedback => 2,
+        };
+        std::iter::once(1).chain(first..first + drift).collect()
+    }
+
+    /// All columns in coefficient order from the shape-dependent ones `varying`.
+    pub(super) fn assemble(&self, varying: Vec<Vec<f64>>, n: usize) -> Vec<Vec<f64>> {
+        let fixed_at = self.fixed_indices();
+        let total = varying.len() + fixed_at.len();
+        let mut fixed = self.fixed_columns(n).into_iter();
+        let mut var = varying.into_iter();
+        (0..total)
+            .map(|i| {
+                if fixed_at.contains(&i) {
+                    fixed.next().expect("fixed column")
+                } else {
+                    var.next().expect("varying column")
+                }
+            })
+            .collect()
+    }
+
+    /// Decays `e^(-t/τ)` from each record's start, shape-dependent columns after the drift:
+    /// the creep elements' initial states, then a settling drift.
+    pub(super) fn state_columns(&self, sh: &Shape, n: usize) -> Vec<Vec<f64>> {
+        let dt = self.ctx.dt;
+        let mut taus = match self.form(Effect::Creep) {
+            Some(Form::Logarithmic) => log_creep_state_taus(&self.ctx).to_vec(),
+            Some(_) => vec![sh.creep_tau, sh.creep_tau2],
+            None => Vec::new(),
+        };
+        if self.form(Effect::OffsetDrift) == Some(Form::Settling) {
+            taus.push(sh.drift_tau);
+        }
+        taus.into_iter()
+            .map(|tau| {
+                let r = (-dt / tau).exp();
+                let col: Vec<f64> = std::iter::successors(Some(1.0), |p| Some(p * r))
+                    .take(n)
+                    .collect();
+                if col.iter().all(|x| x.is_finite()) {
+                    col
+                } else {
+                    vec![0.0; n]
+                }
+            })
+            .collect()
+    }
+
+    /// [`Self::varying_columns`] for the feedback placement: `[creep(y), creep states]`, `y` the unit-free
+    /// oscillator's displacement driven by the chain's output over `u_ref`.
+    pub(super) fn columns_feedback(&self, sh: &Shape, u: &[f64]) -> (Vec<Vec<f64>>, Status) {
+        let n = u.len();
+        let ctx = &self.ctx;
+        let dt = ctx.dt;
+        let osc = Oscillator {
+            omega: 2.0 * std::f64::consts::PI * sh.fb_hz,
+            zeta: sh.fb_zeta,
+            r: sh.fb_r,
+            b: sh.fb_b,
+            c: sh.fb_c,
+            n: sh.n,
+        };
+        let finite = sh.is_finite();
+        let tail = self.state_columns(sh, n);
+        let failed = |at: usize| {
+            let mut cols = vec![vec![0.0; n]];
+            cols.extend(tail.iter().cloned());
+            (cols, Status::Unstable { at })
+        };
+        if n == 0 || !finite {
+            return failed(0);
+        }
+        // The command at the samples (timing, delay, a second-order lag), between them
+        // (hold), a first-order lag on the fine grid.
+        let mut x = shift(u, sh.input_shift(self), sh.curvature.clamp(0.0, 1.0));
+        if self.has(Effect::InputLag) && sh.lag2_hz.is_finite() {
+            let mut l = Mode::new(sh.lag2_hz, sh.lag2_zeta.max(0.0), dt);
+            l.settle(x[0]);
+            for v in &mut x {
+                *v = l.step(*v);
+            }
+        }
+        let m = osc.substeps(dt);
+        let mut fine = upsample(&x, ctx.hold, m);
+        if self.has(Effect::InputLag) && sh.lag > 0.0 {
+            let mut lp = LowPass::new(sh.lag, dt / (2 * m) as f64);
+            lp.settle(u[0]);
+            let per = fine.per();
+            for (i, v) in fine.values.iter_mut().enumerate() {
+                // Each interval's first value is the previous one's last instant.
+                *v = if i % per == 0 {
+                    lp.output()
+                } else {
+                    lp.step(*v)
+                };
+            }
+        }
+        let clip = sh.drive(ctx.u_ref);
+        let drive = |x: f64| clip(x) / ctx.u_ref;
+        fine.map(drive);
+        let y = match osc.respond(&fine, dt, drive(u[0]), sh.g0.clamp(-1.0, 1.0)) {
+            Ok(y) => y,
+            Err(at) => return failed(at),
+        };
+        let mut out = y;
+        if let Some(form) = self.form(Effect::Creep) {
+            let y = out.clone();
+            for (g, tau) in sh.creep_elements(form, ctx) {
+                if g != 0.0 {
+                    let mut lp = LowPass::new(tau, dt);
+                    lp.settle(y[0]);
+                    for (o, &v) in out.iter_mut().zip(&y).skip(1) {
+                        *o += g * lp.step(v);
+                    }
+                    out[0] += g * y[0];
+                }
+            }
+        }
+        if out.iter().any(|v| !v.is_finite()) {
+            return failed(0);
+        }
+        let mut cols = vec![out];
+        cols.extend(tail);
+        (cols, Status::Ok)
+    }
+}

@@ -1,0 +1,103 @@
+//! The scales of the training data, and where the hysteresis sits in the model.
+
+use super::*;
+
+/// Scales of the training data that make the shape parameters unit-free.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Context {
+    /// Sample interval (s).
+    pub dt: f64,
+    /// Largest |u| of the training input.
+    pub u_ref: f64,
+    /// RMS of |du/dt| of the training input (input units per second).
+    pub rate_ref: f64,
+    /// Duration of the training record (s): the time scale of the drift polynomial.
+    pub t_ref: f64,
+    /// How the input moves between samples, for the feedback placement's integrator (the
+    /// blocks of the chain are discretised for a zero-order hold).
+    pub hold: Hold,
+}
+
+/// Where the `dynamics` mode sits relative to the hysteresis.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Placement {
+    /// A mode after the hysteresis: `y = G(s) h(u)` (a piezo stack driving a structure).
+    #[default]
+    After,
+    /// The hysteresis inside the mechanical feedback, a restoring force:
+    /// `m ÿ + c ẏ + k y + z(y) = u` ([`super::restoring`]).
+    Feedback,
+}
+
+impl Placement {
+    /// The name in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Placement::After => "after-hysteresis",
+            Placement::Feedback => "feedback",
+        }
+    }
+
+    /// One line for humans.
+    pub fn meaning(self) -> &'static str {
+        match self {
+            Placement::After => "a structural mode after the hysteresis",
+            Placement::Feedback => {
+                "the hysteresis inside the mechanical feedback (a hysteretic restoring force)"
+            }
+        }
+    }
+}
+
+impl Context {
+    /// The scales of training input `u` sampled every `dt`.
+    pub fn from_training(u: &[f64], dt: f64) -> Context {
+        let u_ref = u.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(1e-300);
+        let n = u.len().max(2);
+        let ms: f64 = u
+            .windows(2)
+            .map(|w| ((w[1] - w[0]) / dt).powi(2))
+            .sum::<f64>()
+            / (n - 1) as f64;
+        Context {
+            dt,
+            u_ref,
+            rate_ref: ms.sqrt().max(1e-300),
+            t_ref: (n as f64 * dt).max(dt),
+            hold: Hold::Zoh,
+        }
+    }
+
+    /// The scales of several training records `(input, interval)` fitted together: the
+    /// largest |u|, the RMS rate over every sample, the longest record's duration (the time
+    /// scale one record can show); sampled at the first record's interval.
+    pub fn from_records(records: &[(&[f64], f64)]) -> Context {
+        let one: Vec<Context> = records
+            .iter()
+            .map(|&(u, dt)| Context::from_training(u, dt))
+            .collect();
+        let Some(first) = one.first() else {
+            return Context::from_training(&[], 1.0);
+        };
+        let weight = |k: usize| records[k].0.len().max(2) as f64 - 1.0;
+        let total: f64 = (0..one.len()).map(weight).sum();
+        let ms: f64 = one
+            .iter()
+            .enumerate()
+            .map(|(k, c)| weight(k) * c.rate_ref * c.rate_ref)
+            .sum::<f64>()
+            / total;
+        Context {
+            u_ref: one.iter().fold(0.0f64, |m, c| m.max(c.u_ref)),
+            rate_ref: ms.sqrt().max(1e-300),
+            t_ref: one.iter().fold(0.0f64, |m, c| m.max(c.t_ref)),
+            ..*first
+        }
+    }
+
+    /// The same scales with inputs moving between samples by `hold`.
+    pub fn with_hold(mut self, hold: Hold) -> Context {
+        self.hold = hold;
+        self
+    }
+}
