@@ -19,6 +19,8 @@
 //!   Levenberg-Marquardt, BP and random search; they only see an evaluator.
 //! - [`stats`]: descriptive statistics, intervals, rank tests, ERT.
 //! - [`registry`]: the names suites and commands use for objective and optimizer kinds.
+//! - [`render`]: the figure and table kit (six figure kinds as SVG and PNG, Markdown and
+//!   LaTeX writers, the bundled font); draws data, not runs.
 //! - [`pipeline`]: suite and plan, the trial runner, the result store, a run (resumable,
 //!   sharded), merge and MPI; the one-trial jobs of `fit` and `simulate`.
 //! - [`speed`]: what `optbench bench` measures (evaluation paths, harness overhead).
@@ -38,6 +40,7 @@ pub mod optimizer;
 pub mod physics;
 pub mod pipeline;
 pub mod registry;
+pub mod render;
 pub mod report;
 pub mod speed;
 pub mod stats;

@@ -1,7 +1,7 @@
 //! `optbench list`: every objective and optimizer kind with its parameters and defaults.
 
 use crate::registry::{objective_kinds, optimizer_kinds};
-use crate::report::table::markdown;
+use crate::render::table::markdown;
 
 pub fn run() {
     print!("{}", list());

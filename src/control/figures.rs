@@ -6,7 +6,7 @@
 
 use super::closed_loop::LoopRun;
 use crate::base::error::Result;
-use crate::report::plots;
+use crate::render;
 use std::path::Path;
 
 /// Writes `<prefix>time`, `<prefix>time-transient`, `<prefix>compensation` and
@@ -30,7 +30,7 @@ pub fn write_run_figures(
         .unwrap_or_default();
     let mut written = Vec::new();
     let time = |stem: &str, range: std::ops::Range<usize>, what: &str| -> Result<()> {
-        plots::timeseries_with_error(
+        render::timeseries_with_error(
             &dir.join(stem),
             &format!("{title}: {what}{failed}"),
             &t[range.clone()],
@@ -41,7 +41,7 @@ pub fn write_run_figures(
         )
     };
     let loops = |stem: &str, range: std::ops::Range<usize>, what: &str| -> Result<()> {
-        plots::loops(
+        render::loops(
             &dir.join(stem),
             &format!("{title}: {what}{failed}"),
             &run.reference[range.clone()],

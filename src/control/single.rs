@@ -7,7 +7,7 @@ use super::reference::Reference;
 use super::run::{ControllerSpec, DT, Outcome, RunSpec, key_values};
 use crate::base::error::{Error, Result};
 use crate::base::{TrialSeed, atomic_write};
-use crate::report::table::sig;
+use crate::render::table::sig;
 use rand::RngExt;
 use serde::Serialize;
 use std::path::PathBuf;

@@ -46,8 +46,8 @@ use super::run::{ControllerSpec, DEFAULT_TRANSIENT_S, Metrics, RunSpec};
 use super::single::{model_seed, noise_seed, run_csv};
 use crate::base::error::{Error, Result};
 use crate::base::{TrialSeed, atomic_write};
-use crate::report::paper::{booktabs, latex_escape};
-use crate::report::table::{markdown, sig};
+use crate::render::latex::{booktabs, latex_escape};
+use crate::render::table::{markdown, sig};
 use crate::stats::{a12, bootstrap_median_ci, describe, mann_whitney};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -811,7 +811,7 @@ pub fn run_suite(suite: &ControlSuite, threads: Option<usize>, out: &Path) -> Re
                     })
                     .collect();
                 let stem = format!("rmse_{}_{}", p.id, reference);
-                crate::report::plots::boxplot(
+                crate::render::boxplot(
                     &fig_dir.join(&stem),
                     &format!(
                         "RMS tracking error, {reference} ({}), {} trials",

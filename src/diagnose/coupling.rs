@@ -7,7 +7,7 @@
 
 use super::Diagnosis;
 use super::residual;
-use crate::report::table::sig;
+use crate::render::table::sig;
 use serde::Serialize;
 
 /// A column holding at least this share of the residual's power coherently is reported.

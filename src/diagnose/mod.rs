@@ -1387,7 +1387,7 @@ fn judge(c: &Evaluated, parent: &Evaluated, g: &Gate) -> Verdict {
     // correlation test scores higher although most of the error is gone.
     let white_ok = c.score < parent.score || explained >= noise * noise;
     let mark = |b: bool| if b { "yes" } else { "no" };
-    let fmt = |x: f64| crate::report::table::sig(x, 3);
+    let fmt = |x: f64| crate::render::table::sig(x, 3);
     Verdict {
         delta_bic: delta,
         passed: bic_ok && band_ok && white_ok,
@@ -1799,16 +1799,16 @@ pub fn diagnose_with_tests(
         if b_free < b_one - opts.bic_margin {
             n_choice = format!(
                 "n fitted: {} (BIC {} below n = 1's, margin {})",
-                crate::report::table::sig(n_fit, 4),
-                crate::report::table::sig(b_one - b_free, 3),
+                crate::render::table::sig(n_fit, 4),
+                crate::render::table::sig(b_one - b_free, 3),
                 opts.bic_margin
             );
             base_fit
         } else {
             n_choice = format!(
                 "n = 1: the fitted n = {} improves BIC by only {} (margin {})",
-                crate::report::table::sig(n_fit, 4),
-                crate::report::table::sig(b_one - b_free, 3),
+                crate::render::table::sig(n_fit, 4),
+                crate::render::table::sig(b_one - b_free, 3),
                 opts.bic_margin
             );
             f1
@@ -1830,7 +1830,7 @@ pub fn diagnose_with_tests(
     let mut longest = 0.0f64;
     for (record, e, step) in [("training", &et_base, dt), ("validation", &ev_base, dv)] {
         if let Some((w, share, ri, ro)) = residual::start_transient(e, step, noise) {
-            let f = |x: f64| crate::report::table::sig(x, 3);
+            let f = |x: f64| crate::render::table::sig(x, 3);
             longest = longest.max(w);
             starts.push(format!(
                 "the {record} record starts in motion: its first {w} s hold {} % of the residual power (RMS {} {unit} against {} {unit} after)",
@@ -1881,7 +1881,7 @@ pub fn diagnose_with_tests(
             if current_summary.p_value > 0.05 {
                 search_stop = format!(
                     "{at}: the residual battery finds no structure (bootstrap p {})",
-                    crate::report::table::sig(current_summary.p_value, 2)
+                    crate::render::table::sig(current_summary.p_value, 2)
                 );
                 break;
             }
@@ -1893,7 +1893,7 @@ pub fn diagnose_with_tests(
                         "validation record better than its noise)"
                     ),
                     at,
-                    crate::report::table::sig(current.validate_rmse / noise.max(1e-300), 3),
+                    crate::render::table::sig(current.validate_rmse / noise.max(1e-300), 3),
                     100.0 * MIN_EXPLAINED
                 );
                 break;
@@ -2205,7 +2205,7 @@ pub fn diagnose_with_tests(
                 let Some((&e, r, (gain, _, _))) = drop else {
                     break;
                 };
-                let fmt = |x: f64| crate::report::table::sig(x, 3);
+                let fmt = |x: f64| crate::render::table::sig(x, 3);
                 for c in candidates.iter_mut().filter(|c| c.accepted && !c.dropped) {
                     if c.name.split('+').any(|n| n == e.name()) {
                         // A pair keeps its other effect: only a single is dropped whole.
@@ -2255,7 +2255,7 @@ pub fn diagnose_with_tests(
         let parent_label = current.fitted.structure.label();
         let band = current_summary.validate_band;
         let margin = opts.bic_margin;
-        let fmt = |x: f64| crate::report::table::sig(x, 3);
+        let fmt = |x: f64| crate::render::table::sig(x, 3);
         let mut best: Option<(usize, f64)> = None;
         let mut at = Vec::new();
         for (i, (out, p, c)) in tried.iter().enumerate() {
@@ -2478,7 +2478,7 @@ pub fn diagnose_with_tests(
             );
             x.question = format!(
                 "{label} gains {} in training BIC on the final model but the validation record does not confirm it",
-                crate::report::table::sig(-delta, 3)
+                crate::render::table::sig(-delta, 3)
             );
             diag.next_experiment = Some(x);
         }

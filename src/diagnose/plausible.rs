@@ -6,7 +6,7 @@
 
 use super::refit::Fitted;
 use crate::physics::structure::{Effect, ParamSpec, Placement};
-use crate::report::table::sig;
+use crate::render::table::sig;
 use rustfft::FftPlanner;
 use rustfft::num_complex::Complex;
 use serde::Serialize;

@@ -3,8 +3,8 @@
 use super::{Diagnosis, residual};
 use crate::base::atomic_write;
 use crate::base::error::{Error, Result};
-use crate::report::plots;
-use crate::report::table::sig;
+use crate::render;
+use crate::render::table::sig;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -339,7 +339,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
         let pts = |e: &[f64]| -> Vec<(f64, f64)> {
             s.t[i].iter().copied().zip(e.iter().copied()).collect()
         };
-        plots::lines(
+        render::lines(
             &dir.join(format!("{name}_residual_time")),
             &format!("{set}: residual over time"),
             &[
@@ -352,7 +352,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
         )?;
         let [br, bf] = binned(&s.u[i], &eb);
         let [fr, ff] = binned(&s.u[i], &ef);
-        plots::lines(
+        render::lines(
             &dir.join(format!("{name}_residual_loop")),
             &format!("{set}: mean residual by input and direction"),
             &[
@@ -393,7 +393,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
         } else {
             format!("residual PSD [{}²/Hz]", d.unit)
         };
-        plots::lines(
+        render::lines(
             &dir.join(format!("{name}_residual_spectrum")),
             &if one_rate < eb.len() {
                 format!("{set}: residual spectrum (Welch; the records at the first's rate)")
@@ -409,7 +409,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
             &psd_unit,
             (true, true),
         )?;
-        plots::loops(
+        render::loops(
             &dir.join(format!("{name}_loops")),
             &format!("{set}: measured and model loops"),
             &s.u[i],

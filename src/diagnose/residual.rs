@@ -452,7 +452,7 @@ pub fn locate(u: &[f64], e: &[f64], dt: f64, noise: f64, unit: &str) -> Vec<Loca
     }
     let normal = Normal::new(0.0, 1.0).expect("standard normal");
     let total_ms = e.iter().map(|v| v * v).sum::<f64>() / n as f64;
-    let fmt = |x: f64| crate::report::table::sig(x, 3);
+    let fmt = |x: f64| crate::render::table::sig(x, 3);
 
     // Time: windows after turning points (sign changes of du beyond a dead band) and steps.
     let du: Vec<f64> = u.windows(2).map(|w| w[1] - w[0]).collect();

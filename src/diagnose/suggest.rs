@@ -13,7 +13,7 @@ use super::refit::{self, Fitted};
 use crate::data::signal::Signal;
 #[cfg(test)]
 use crate::physics::structure::Form;
-use crate::report::table::sig;
+use crate::render::table::sig;
 use serde::Serialize;
 use std::sync::Arc;
 

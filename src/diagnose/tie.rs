@@ -8,7 +8,7 @@
 
 use super::residual::correlation;
 use super::{Data, Evaluated, gain_band, validation_residual};
-use crate::report::table::sig;
+use crate::render::table::sig;
 use serde::Serialize;
 
 /// Share of the named candidate's gain (training ΔBIC, validation fall of the mean square)

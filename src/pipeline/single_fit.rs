@@ -13,7 +13,7 @@ use crate::harness::TrialRecord;
 use crate::objective::Objective;
 use crate::pipeline::runner::{TrialSpec, run_trial};
 use crate::registry::{objective_kinds, optimizer_kinds};
-use crate::report::{plots, table::sig};
+use crate::render::{self, table::sig};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -245,10 +245,10 @@ fn write_figures(dir: &Path, objective: &dyn Objective, record: &TrialRecord) ->
             ..record.clone()
         },
     };
-    plots::convergence(
+    render::convergence(
         &dir.join("convergence"),
         &format!("{} by {}: convergence", record.objective, record.optimizer),
-        &[plots::convergence_series(&record.optimizer, &[&shown])],
+        &[render::convergence_series(&record.optimizer, &[&shown])],
         &format!("best-so-far {label}"),
         true,
     )?;
@@ -261,7 +261,7 @@ fn write_figures(dir: &Path, objective: &dyn Objective, record: &TrialRecord) ->
                 format!(" [{}]", rec.units[i])
             }
         };
-        plots::timeseries_with_error(
+        render::timeseries_with_error(
             &dir.join(format!("{set}_time")),
             &format!("{set}: measured and model ({})", record.optimizer),
             &rec.t,
@@ -270,7 +270,7 @@ fn write_figures(dir: &Path, objective: &dyn Objective, record: &TrialRecord) ->
             &format!("time{}", unit(0)),
             &format!("output{}", unit(2)),
         )?;
-        plots::loops(
+        render::loops(
             &dir.join(format!("{set}_loops")),
             &format!("{set}: input-output loops ({})", record.optimizer),
             &rec.u,

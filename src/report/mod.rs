@@ -5,20 +5,19 @@
 pub mod analysis;
 pub mod ioh;
 pub mod paper;
-pub mod plots;
-pub mod table;
-
-mod font;
 
 use crate::base::atomic_write;
 use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
 use crate::pipeline::store::{Provenance, read_traces};
 use crate::pipeline::suite::Suite;
+use crate::render::{
+    self,
+    table::{markdown, sig},
+};
 use crate::stats::{a12, describe, holm, mann_whitney};
 use analysis::{Analysis, ObjectiveInfo, analyse, error_of};
 use std::path::Path;
-use table::{markdown, sig};
 
 /// Number of log-spaced targets for the runtime ECDF when the suite gives none.
 const DEFAULT_ECDF_TARGETS: usize = 31;
@@ -229,14 +228,14 @@ fn write_plots(dir: &Path, run: &StoredRun, a: &Analysis) -> Result<()> {
             (None, Some(_)) => "best-so-far error to optimum".into(),
             (None, None) => "best-so-far value".into(),
         };
-        let series: Vec<plots::ConvergenceSeries> = o
+        let series: Vec<render::ConvergenceSeries> = o
             .cells
             .iter()
-            .map(|c| plots::convergence_series(&c.optimizer, &by_opt(&c.optimizer)))
+            .map(|c| render::convergence_series(&c.optimizer, &by_opt(&c.optimizer)))
             .collect();
         let all_positive = o.cells.iter().all(|c| c.stats.min > 0.0) || o.optimum.is_some();
         let n = o.cells.first().map(|c| c.stats.n).unwrap_or(0);
-        plots::convergence(
+        render::convergence(
             &dir.join(format!("convergence_{}", o.id)),
             &format!("{}: median and IQR over {n} trials", o.id),
             &series,
@@ -248,7 +247,7 @@ fn write_plots(dir: &Path, run: &StoredRun, a: &Analysis) -> Result<()> {
             .iter()
             .map(|c| (c.optimizer.clone(), c.errors.clone()))
             .collect();
-        plots::boxplot(
+        render::boxplot(
             &dir.join(format!("box_{}", o.id)),
             &format!(
                 "{}: final {} ({n} trials)",
@@ -305,7 +304,7 @@ fn write_plots(dir: &Path, run: &StoredRun, a: &Analysis) -> Result<()> {
                 (c.optimizer.clone(), v)
             })
             .collect();
-        plots::ecdf(
+        render::ecdf(
             &dir.join(format!("ecdf_{}", o.id)),
             &format!(
                 "{}: runtime ECDF, {} targets {}..{}",

@@ -2,7 +2,8 @@
 //! (booktabs) and CSV.
 
 use super::analysis::{ALPHA, Analysis, ObjectiveStats};
-use super::table::{markdown, sig};
+use crate::render::latex::{booktabs, latex_escape, latex_num};
+use crate::render::table::{markdown, sig};
 use std::fmt::Write;
 
 /// Marker and text for cell `i` against the best of its objective.
@@ -278,35 +279,6 @@ pub fn report_markdown(a: &Analysis) -> String {
     s += "\n## Pairwise tests\n\n";
     s += &pairwise_markdown(a);
     s
-}
-
-/// `x` in LaTeX math: `1.23`, or `1.23\cdot10^{-5}` when very small or large.
-pub fn latex_num(x: f64) -> String {
-    let s = sig(x, 3);
-    match s.split_once('e') {
-        Some((m, e)) => format!("${m}\\cdot10^{{{e}}}$"),
-        None => format!("${s}$"),
-    }
-}
-
-/// Text for LaTeX: backslash, `&`, `%`, `_` and `#` escaped (one escaper for every table).
-pub(crate) fn latex_escape(s: &str) -> String {
-    s.replace('\\', "\\textbackslash{}")
-        .replace('&', "\\&")
-        .replace('%', "\\%")
-        .replace('_', "\\_")
-        .replace('#', "\\#")
-}
-
-/// A booktabs table with its float: `% optbench: {tag}` comment, `caption` (already
-/// escaped), a label column and right-aligned `columns`, then `body` (rows ending in `\\`).
-pub(crate) fn booktabs(tag: &str, caption: &str, columns: &[String], body: &str) -> String {
-    let head: Vec<String> = columns.iter().map(|c| latex_escape(c)).collect();
-    format!(
-        "% optbench: {tag}\n\\begin{{table}}[t]\n\\centering\n\\caption{{{caption}}}\n\\begin{{tabular}}{{l{}}}\n\\toprule\n & {} \\\\\n\\midrule\n{body}\\bottomrule\n\\end{{tabular}}\n\\end{{table}}\n",
-        "r".repeat(columns.len()),
-        head.join(" & ")
-    )
 }
 
 /// The summary as a booktabs table: objectives x optimizers, median errors, best in bold,
@@ -665,11 +637,5 @@ mod tests {
         // Every run reaches error 1.0 at evaluation 50 except "bad" (never).
         assert!(ert.contains("f_1,good,1e0,12,12,1,5e1"), "{ert}");
         assert!(ert.contains("f_1,bad,1e0,0,12,0,\n"), "{ert}");
-    }
-
-    #[test]
-    fn latex_numbers() {
-        assert_eq!(latex_num(0.000_012_3), "$1.23\\cdot10^{-5}$");
-        assert_eq!(latex_num(12.0), "$12.0$");
     }
 }
