@@ -154,7 +154,7 @@ fn unknown_names_list_the_valid_ones() {
             "{HEAD}[[objective]]\nkind = \"griewonk\"\ndim = 2\n[[optimizer]]\nkind = \"ga\"\n"
         ),
         &[
-            "bad.toml:5:",
+            "bad.toml:6:",
             "unknown objective kind `griewonk`",
             "sphere, griewank, schwefel, rastrigin, rosenbrock, ackley",
         ],
@@ -164,7 +164,7 @@ fn unknown_names_list_the_valid_ones() {
             "{HEAD}[[objective]]\nkind = \"griewank\"\ndim = 2\n[[optimizer]]\nkind = \"cma-es\"\n"
         ),
         &[
-            "bad.toml:8:",
+            "bad.toml:9:",
             "unknown optimizer kind `cma-es`",
             "ga, pso, msga, bp, nelder-mead, random, de, shade, cmaes, lbfgs",
         ],

@@ -45,17 +45,21 @@ pub fn run(args: RunArgs) -> Result<()> {
     if std::fs::read_to_string(&args.suite)
         .is_ok_and(|t| crate::control::suite::is_control_suite(&t))
     {
-        return crate::control::suite::run_cli(
-            &args.suite,
-            &crate::control::suite::RunOverrides {
-                out: args.out,
-                trials: args.trials.map(|t| t as usize),
-                threads: args.threads.map(|t| t as usize),
-                seed: args.seed,
-                budget: args.budget,
-                quiet: args.quiet,
-            },
+        print!(
+            "{}",
+            crate::control::suite::run_file(
+                &args.suite,
+                &crate::control::suite::RunOverrides {
+                    out: args.out,
+                    trials: args.trials.map(|t| t as usize),
+                    threads: args.threads.map(|t| t as usize),
+                    seed: args.seed,
+                    budget: args.budget,
+                    quiet: args.quiet,
+                },
+            )?
         );
+        return Ok(());
     }
     let req = crate::pipeline::run::RunRequest {
         suite: args.suite,

@@ -464,8 +464,14 @@ fn paper_cell(
     }
 }
 
-/// A suite's paper-layout table: our median [95 % CI] with the paper's number beside it.
-pub fn paper_table_markdown(t: &crate::pipeline::suite::PaperTable, a: &Analysis) -> String {
+/// A paper-layout table in Markdown: `heading`, then each cell as `ours` gives it ("not
+/// run" where it gives none) with the published number beside it, then the table's note.
+/// Benchmark and control suites share it, so their tables read alike.
+pub fn layout_markdown(
+    t: &crate::pipeline::suite::PaperTable,
+    heading: &str,
+    ours: impl Fn(&str) -> Option<String>,
+) -> String {
     let reference = t.reference.as_deref().unwrap_or("seed");
     let mut header = vec![String::new()];
     header.extend(t.columns.iter().cloned());
@@ -475,14 +481,8 @@ pub fn paper_table_markdown(t: &crate::pipeline::suite::PaperTable, a: &Analysis
         .map(|row| {
             let mut r = vec![row.label.clone()];
             for (i, cell) in row.cells.iter().enumerate() {
-                let ours = match paper_cell(a, cell, t.value.as_ref()) {
-                    Some((m, (lo, hi))) => {
-                        format!("{} [{}, {}]", sig(m, 3), sig(lo, 3), sig(hi, 3))
-                    }
-                    None => "not run".into(),
-                };
-                let seed = row.seed.get(i).copied().filter(|v| v.is_finite());
-                r.push(match seed {
+                let ours = ours(cell).unwrap_or_else(|| "not run".into());
+                r.push(match row.seed.get(i).copied().filter(|v| v.is_finite()) {
                     Some(v) => format!("{ours} ({reference} {})", sig(v, 3)),
                     None => ours,
                 });
@@ -492,20 +492,28 @@ pub fn paper_table_markdown(t: &crate::pipeline::suite::PaperTable, a: &Analysis
         .collect();
     let h: Vec<&str> = header.iter().map(String::as_str).collect();
     let right: Vec<bool> = (0..h.len()).map(|i| i > 0).collect();
-    let mut s = format!("**{}**", t.title);
-    if let Some(v) = &t.value {
-        s += &format!(
-            " ({v}; ours: median [95% CI] over trials; the seed's single run in brackets)"
-        );
-    } else {
-        s += " (ours: median [95% CI] over trials; the seed's single run in brackets)";
-    }
-    s += "\n\n";
+    let mut s = format!("{heading}\n\n");
     s += &markdown(&h, &rows, &right);
     if let Some(n) = &t.note {
         s += &format!("\n{n}\n");
     }
     s
+}
+
+/// A suite's paper-layout table: our median [95 % CI] with the paper's number beside it.
+pub fn paper_table_markdown(t: &crate::pipeline::suite::PaperTable, a: &Analysis) -> String {
+    let what = match &t.value {
+        Some(v) => format!("{v}; "),
+        None => String::new(),
+    };
+    let heading = format!(
+        "**{}** ({what}ours: median [95% CI] over trials; the seed's single run in brackets)",
+        t.title
+    );
+    layout_markdown(t, &heading, |cell| {
+        paper_cell(a, cell, t.value.as_ref())
+            .map(|(m, (lo, hi))| format!("{} [{}, {}]", sig(m, 3), sig(lo, 3), sig(hi, 3)))
+    })
 }
 
 /// The same table in LaTeX (booktabs): ours above, the seed's number below in grey-free

@@ -30,7 +30,7 @@
 
 use crate::base::TrialSeed;
 use crate::base::error::{Error, Result};
-use crate::base::params::{Origin, Params};
+use crate::base::params::Params;
 use crate::harness::OptimizerConfig;
 use crate::objective::Objective;
 use crate::registry::{objective_kinds, optimizer_kinds};
@@ -38,9 +38,13 @@ use serde::Deserialize;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use text::{Fields as RawEntry, Header, SuiteText};
 use toml::Spanned;
 
-type RawEntry = BTreeMap<String, Spanned<toml::Value>>;
+pub mod paper;
+pub mod text;
+
+pub use paper::{CellRef, PaperRow, PaperTable};
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -61,70 +65,6 @@ struct RawSuite {
     optimizers: Vec<Spanned<RawEntry>>,
     #[serde(rename = "table", default)]
     tables: Vec<Spanned<PaperTable>>,
-}
-
-/// A table laid out like one in a paper, with its published numbers beside ours:
-/// rows x columns of cells `objective:optimizer` (or `objective:optimizer@metric`).
-///
-/// ```toml
-/// [[table]]
-/// id = "table3.2"
-/// title = "Table 3.2: RMS error of Bouc-Wen fits [mm]"
-/// value = "train RMSE [mm]"          # default for cells without @metric; omit: the value
-/// columns = ["GA", "MSGA"]
-/// rows = [
-///   { label = "1 Hz", cells = ["bw-1hz:GA", "bw-1hz:MSGA"], seed = [0.0145, 0.0066] },
-/// ]
-/// ```
-#[derive(Debug, Clone, Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct PaperTable {
-    pub id: String,
-    pub title: String,
-    #[serde(default)]
-    pub value: Option<String>,
-    #[serde(default)]
-    pub note: Option<String>,
-    /// Who the reference numbers are from (default "seed").
-    #[serde(default)]
-    pub reference: Option<String>,
-    pub columns: Vec<String>,
-    pub rows: Vec<PaperRow>,
-}
-
-/// One row of a [`PaperTable`].
-#[derive(Debug, Clone, Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct PaperRow {
-    pub label: String,
-    pub cells: Vec<String>,
-    /// The reference numbers, one per column (nan where there is none).
-    #[serde(default)]
-    pub seed: Vec<f64>,
-}
-
-/// A parsed cell reference of a [`PaperTable`].
-#[derive(Debug, Clone, PartialEq)]
-pub struct CellRef {
-    pub objective: String,
-    pub optimizer: String,
-    pub metric: Option<String>,
-}
-
-impl CellRef {
-    /// Parses `objective:optimizer[@metric]`.
-    pub fn parse(s: &str) -> Option<CellRef> {
-        let (cell, metric) = match s.split_once('@') {
-            Some((c, m)) => (c, Some(m.trim().to_string())),
-            None => (s, None),
-        };
-        let (o, p) = cell.split_once(':')?;
-        Some(CellRef {
-            objective: o.trim().into(),
-            optimizer: p.trim().into(),
-            metric,
-        })
-    }
 }
 
 /// One objective of a suite, built and validated.
@@ -187,51 +127,18 @@ pub struct PlannedTrial {
     pub trial: usize,
 }
 
-fn line_of(text: &str, offset: usize) -> usize {
-    text[..offset.min(text.len())].matches('\n').count() + 1
-}
-
-fn valid_name(s: &str) -> bool {
-    !s.is_empty()
-        && !s.starts_with('.')
-        && s.chars()
-            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
-}
-
 impl Suite {
     /// Reads and validates the suite at `path`.
     pub fn load(path: &Path) -> Result<Suite> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| Error::Input(format!("{}: cannot read suite: {e}", path.display())))?;
-        Self::parse(&text, path)
+        Self::parse(&text::read(path)?, path)
     }
 
     /// Validates suite text; `path` is used in messages and provenance.
     pub fn parse(text: &str, path: &Path) -> Result<Suite> {
-        let at = |offset: usize, msg: String| Error::at(path, line_of(text, offset), msg);
-        let raw: RawSuite = toml::from_str(text).map_err(|e| {
-            let line = e.span().map(|s| line_of(text, s.start)).unwrap_or(1);
-            Error::at(path, line, e.message().trim_end())
-        })?;
-
-        let name = raw.name.get_ref().clone();
-        if !valid_name(&name) {
-            return Err(at(
-                raw.name.span().start,
-                format!(
-                    "`name` = {name:?}: use letters, digits, '-', '_' or '.' (it names the results folder)"
-                ),
-            ));
-        }
-        let seed = u64::try_from(*raw.seed.get_ref())
-            .map_err(|_| at(raw.seed.span().start, "`seed` must be >= 0".into()))?;
-        let trials = *raw.trials.get_ref();
-        if trials < 1 {
-            return Err(at(
-                raw.trials.span().start,
-                format!("`trials` = {trials}: expected an integer >= 1"),
-            ));
-        }
+        let st = SuiteText::new(path, text);
+        let at = |offset: usize, msg: String| st.at(offset, msg);
+        let raw: RawSuite = st.parse()?;
+        let Header { name, seed, trials } = st.header(&raw.name, &raw.seed, &raw.trials)?;
         let budget =
             positive_budget(*raw.budget.get_ref()).map_err(|m| at(raw.budget.span().start, m))?;
         let targets = match &raw.targets {
@@ -256,42 +163,20 @@ impl Suite {
         let mut selections = Vec::new();
         let mut ids = BTreeSet::new();
         for entry in &raw.objectives {
-            let line = line_of(text, entry.span().start);
-            let mut fields = entry.get_ref().clone();
-            let kind = find_kind(
-                &kinds,
-                |k| k.name,
-                &mut fields,
-                path,
-                text,
-                line,
-                "objective",
-            )?;
-            let id = take_str(&mut fields, "id", path, text)?;
-            let own_budget = take_int(&mut fields, "budget", path, text)?;
-            let own_targets = take_array(&mut fields, "targets", "numbers", as_float, path, text)?;
-            let own_stop = take_float(&mut fields, "stop_at", path, text)?;
-            let only = take_array(
-                &mut fields,
-                "optimizers",
-                "strings",
-                |x| x.as_str().map(String::from),
-                path,
-                text,
-            )?;
+            let (line, mut fields) = (st.line(entry.span().start), entry.get_ref().clone());
+            let kind = st.take_kind(&kinds, |k| k.name, &mut fields, line, "objective")?;
+            let id = st.take_str(&mut fields, "id")?;
+            let own_budget = st.take_int(&mut fields, "budget")?;
+            let own_targets = st.take_floats(&mut fields, "targets")?;
+            let own_stop = st.take_float(&mut fields, "stop_at")?;
+            let only = st.take_array(&mut fields, "optimizers", "strings", |x| {
+                x.as_str().map(String::from)
+            })?;
             let what = format!("objective `{}`", id.as_deref().unwrap_or(kind.name));
-            let params = Params::validate(
-                kind.params,
-                &given(fields, text),
-                Origin {
-                    file: path.to_path_buf(),
-                    line,
-                    what,
-                },
-            )?;
+            let params = Params::validate(kind.params, &st.given(fields), st.origin(line, what))?;
             let objective = (kind.build)(&params)?;
             let id = id.unwrap_or_else(|| format!("{}-{}d", kind.name, objective.dim()));
-            check_id(&id, &mut ids, path, line, "objective")?;
+            st.check_id(&id, &mut ids, line, "objective")?;
             let budget = match own_budget {
                 Some((b, l)) => positive_budget(b).map_err(|m| Error::at(path, l, m))?,
                 None => budget,
@@ -321,32 +206,19 @@ impl Suite {
         let mut optimizers = Vec::new();
         let mut ids = BTreeSet::new();
         for entry in &raw.optimizers {
-            let line = line_of(text, entry.span().start);
-            let mut fields = entry.get_ref().clone();
-            let kind = find_kind(
-                &kinds,
-                |k| k.name,
-                &mut fields,
-                path,
-                text,
-                line,
-                "optimizer",
-            )?;
-            let id = take_str(&mut fields, "id", path, text)?.unwrap_or_else(|| kind.name.into());
-            let polish = take_float(&mut fields, "polish", path, text)?;
-            let polish_line = fields
-                .get("polish_with")
-                .map(|v| line_of(text, v.span().start));
-            let polish_with = take_str(&mut fields, "polish_with", path, text)?;
-            check_id(&id, &mut ids, path, line, "optimizer")?;
+            let (line, mut fields) = (st.line(entry.span().start), entry.get_ref().clone());
+            let kind = st.take_kind(&kinds, |k| k.name, &mut fields, line, "optimizer")?;
+            let id = st
+                .take_str(&mut fields, "id")?
+                .unwrap_or_else(|| kind.name.into());
+            let polish = st.take_float(&mut fields, "polish")?;
+            let polish_line = fields.get("polish_with").map(|v| st.line(v.span().start));
+            let polish_with = st.take_str(&mut fields, "polish_with")?;
+            st.check_id(&id, &mut ids, line, "optimizer")?;
             let params = Params::validate(
                 kind.params,
-                &given(fields, text),
-                Origin {
-                    file: path.to_path_buf(),
-                    line,
-                    what: format!("optimizer `{id}`"),
-                },
+                &st.given(fields),
+                st.origin(line, format!("optimizer `{id}`")),
             )?;
             let mut config = (kind.build)(&params)?;
             if let Some((share, line)) = polish {
@@ -432,7 +304,7 @@ impl Suite {
         // its recordings), so each objective is asked once for all tables.
         let mut metric_names = BTreeMap::new();
         for t in &raw.tables {
-            let line = line_of(text, t.span().start);
+            let line = st.line(t.span().start);
             check_table(t.get_ref(), &objectives, &optimizers, &mut metric_names)
                 .map_err(|m| Error::at(path, line, format!("table `{}`: {m}", t.get_ref().id)))?;
             tables.push(t.get_ref().clone());
@@ -445,7 +317,7 @@ impl Suite {
             name,
             description: raw.description,
             seed,
-            trials: trials as usize,
+            trials,
             objectives,
             optimizers,
         })
@@ -487,22 +359,8 @@ fn check_table(
     optimizers: &[OptimizerEntry],
     names: &mut BTreeMap<String, Vec<String>>,
 ) -> std::result::Result<(), String> {
-    let n = t.columns.len();
+    t.check_shape()?;
     for row in &t.rows {
-        if row.cells.len() != n {
-            return Err(format!(
-                "row `{}` has {} cells for {n} columns",
-                row.label,
-                row.cells.len()
-            ));
-        }
-        if !row.seed.is_empty() && row.seed.len() != n {
-            return Err(format!(
-                "row `{}` has {} seed values for {n} columns",
-                row.label,
-                row.seed.len()
-            ));
-        }
         for c in &row.cells {
             let r = CellRef::parse(c)
                 .ok_or_else(|| format!("cell `{c}`: expected objective:optimizer[@metric]"))?;
@@ -574,162 +432,4 @@ fn check_targets(t: &[f64]) -> std::result::Result<Vec<f64>, String> {
     v.sort_by(|a, b| b.total_cmp(a));
     v.dedup();
     Ok(v)
-}
-
-fn check_id(
-    id: &str,
-    seen: &mut BTreeSet<String>,
-    path: &Path,
-    line: usize,
-    what: &str,
-) -> Result<()> {
-    if !valid_name(id) {
-        return Err(Error::at(
-            path,
-            line,
-            format!("{what} id {id:?}: use letters, digits, '-', '_' or '.'"),
-        ));
-    }
-    if !seen.insert(id.to_string()) {
-        return Err(Error::at(
-            path,
-            line,
-            format!("{what} id `{id}` is used twice; give each entry a distinct `id`"),
-        ));
-    }
-    Ok(())
-}
-
-fn given(fields: RawEntry, text: &str) -> BTreeMap<String, (toml::Value, usize)> {
-    fields
-        .into_iter()
-        .map(|(k, v)| {
-            let line = line_of(text, v.span().start);
-            (k, (v.into_inner(), line))
-        })
-        .collect()
-}
-
-/// Takes the entry's `kind` and finds it among `kinds`, or says which kinds exist.
-fn find_kind<'k, K>(
-    kinds: &'k [K],
-    name: impl Fn(&K) -> &'static str,
-    fields: &mut RawEntry,
-    path: &Path,
-    text: &str,
-    line: usize,
-    what: &str,
-) -> Result<&'k K> {
-    let wanted = take_str(fields, "kind", path, text)?.ok_or_else(|| {
-        Error::at(
-            path,
-            line,
-            format!("{what} without `kind`; run `optbench list` for the valid kinds"),
-        )
-    })?;
-    kinds.iter().find(|k| name(k) == wanted).ok_or_else(|| {
-        Error::at(
-            path,
-            line,
-            format!(
-                "unknown {what} kind `{wanted}`; valid kinds: {}",
-                kinds.iter().map(&name).collect::<Vec<_>>().join(", ")
-            ),
-        )
-    })
-}
-
-fn take_str(fields: &mut RawEntry, key: &str, path: &Path, text: &str) -> Result<Option<String>> {
-    match fields.remove(key) {
-        None => Ok(None),
-        Some(v) => match v.get_ref() {
-            toml::Value::String(s) => Ok(Some(s.clone())),
-            other => Err(Error::at(
-                path,
-                line_of(text, v.span().start),
-                format!("`{key}`: expected a string, found {}", other.type_str()),
-            )),
-        },
-    }
-}
-
-fn take_int(
-    fields: &mut RawEntry,
-    key: &str,
-    path: &Path,
-    text: &str,
-) -> Result<Option<(i64, usize)>> {
-    match fields.remove(key) {
-        None => Ok(None),
-        Some(v) => {
-            let line = line_of(text, v.span().start);
-            match v.get_ref() {
-                toml::Value::Integer(i) => Ok(Some((*i, line))),
-                other => Err(Error::at(
-                    path,
-                    line,
-                    format!("`{key}`: expected an integer, found {}", other.type_str()),
-                )),
-            }
-        }
-    }
-}
-
-fn as_float(v: &toml::Value) -> Option<f64> {
-    match v {
-        toml::Value::Float(x) => Some(*x),
-        toml::Value::Integer(i) => Some(*i as f64),
-        _ => None,
-    }
-}
-
-fn take_float(
-    fields: &mut RawEntry,
-    key: &str,
-    path: &Path,
-    text: &str,
-) -> Result<Option<(f64, usize)>> {
-    match fields.remove(key) {
-        None => Ok(None),
-        Some(v) => {
-            let line = line_of(text, v.span().start);
-            as_float(v.get_ref())
-                .map(|x| Some((x, line)))
-                .ok_or_else(|| {
-                    Error::at(
-                        path,
-                        line,
-                        format!(
-                            "`{key}`: expected a number, found {}",
-                            v.get_ref().type_str()
-                        ),
-                    )
-                })
-        }
-    }
-}
-
-/// Takes an optional array `key`, converting each element with `conv` (`what` names the
-/// element type in the message).
-fn take_array<T>(
-    fields: &mut RawEntry,
-    key: &str,
-    what: &str,
-    conv: fn(&toml::Value) -> Option<T>,
-    path: &Path,
-    text: &str,
-) -> Result<Option<(Vec<T>, usize)>> {
-    let Some(v) = fields.remove(key) else {
-        return Ok(None);
-    };
-    let line = line_of(text, v.span().start);
-    let err = || Error::at(path, line, format!("`{key}`: expected an array of {what}"));
-    match v.get_ref() {
-        toml::Value::Array(a) => a
-            .iter()
-            .map(|x| conv(x).ok_or_else(err))
-            .collect::<Result<Vec<_>>>()
-            .map(|x| Some((x, line))),
-        _ => Err(err()),
-    }
 }

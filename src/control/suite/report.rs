@@ -1,0 +1,154 @@
+//! The control suite's `report.md`: the plants, the tables, every cell, the comparisons,
+//! the internal models and the figures.
+
+use super::ControlSuite;
+use super::run::{ControlResults, ModelRecord};
+use super::tables::{cell_text, comparison_markdown, table_markdown};
+use crate::render::table::{markdown, sig};
+use crate::stats::describe;
+use std::collections::BTreeMap;
+
+/// The report: tables, the models, the comparisons, and the figures.
+pub(super) fn report_markdown(
+    suite: &ControlSuite,
+    res: &ControlResults,
+    figures: &[String],
+) -> String {
+    let mut s = format!("# {}\n\n", suite.name);
+    if let Some(d) = &suite.description {
+        s += &format!("{d}\n\n");
+    }
+    s += &format!(
+        "Seed {}, {} trials per cell (each trial: its own sensor-noise realisation and its own PSO fit of the internal model); loop at 1 ms; transient = first {} s. Failed runs (the divergence guard tripped: |u| > {} V, |y| > {} mm or NaN) count as +inf.\n\n",
+        suite.seed, suite.trials, suite.transient, suite.guard.u_limit, suite.guard.y_limit
+    );
+    s += "## Plants\n\n";
+    for p in &suite.plants {
+        s += &format!(
+            "- `{}`: twin `{}`, internal model identified on twin `{}`{}\n",
+            p.id,
+            if p.twin.is_empty() {
+                "default"
+            } else {
+                &p.twin
+            },
+            p.model_twin.as_deref().unwrap_or(if p.twin.is_empty() {
+                "default"
+            } else {
+                &p.twin
+            }),
+            p.description
+                .as_ref()
+                .map(|d| format!(": {d}"))
+                .unwrap_or_default()
+        );
+    }
+    s += "\n## Tables\n\n";
+    for t in &suite.tables {
+        s += &table_markdown(t, suite, res);
+        s.push('\n');
+    }
+    s += "## Every cell\n\n";
+    let rows: Vec<Vec<String>> = res
+        .cells
+        .iter()
+        .map(|c| {
+            vec![
+                c.plant.clone(),
+                c.controller.clone(),
+                c.reference.clone(),
+                cell_text(c, false),
+                cell_text(c, true),
+            ]
+        })
+        .collect();
+    s += &markdown(
+        &[
+            "plant",
+            "controller",
+            "reference",
+            "RMSE [mm] whole run",
+            "RMSE [mm] after transient",
+        ],
+        &rows,
+        &[false, false, false, true, true],
+    );
+    s += "\n";
+    s += &comparison_markdown(suite, res);
+    if !res.models.is_empty() {
+        s += "\n## Internal models\n\n";
+        let mut by: BTreeMap<usize, Vec<&ModelRecord>> = BTreeMap::new();
+        for m in &res.models {
+            by.entry(m.setting).or_default().push(m);
+        }
+        for (setting, ms) in by {
+            let free: Vec<f64> = ms.iter().map(|m| m.free_run_rmse_mm).collect();
+            let one: Vec<f64> = ms.iter().map(|m| m.one_step_rmse_mm).collect();
+            let (df, d1) = (describe(&free), describe(&one));
+            let c = &ms[0].config;
+            s += &format!(
+                "- setting {setting}: {}-{}-1 RBF NARX ({} input, {} output lags), PSO {} x {} evaluations, {} cost, identified on twin `{}` with `{}` for {} s; RMSE on the identification record over {} fits: free run median {} [q1 {}, q3 {}] mm, one-step {} mm\n",
+                c.input_lags + c.output_lags,
+                c.hidden,
+                c.input_lags,
+                c.output_lags,
+                c.swarm,
+                c.budget,
+                c.mode,
+                if c.twin.is_empty() {
+                    "default"
+                } else {
+                    &c.twin
+                },
+                c.signal,
+                c.duration,
+                ms.len(),
+                sig(df.median, 3),
+                sig(df.q1, 3),
+                sig(df.q3, 3),
+                sig(d1.median, 3)
+            );
+        }
+    }
+    if !figures.is_empty() {
+        s += "\n## Figures (trial 0 of each cell)\n\n";
+        for f in figures {
+            s += &format!("- [{f}](figures/{f}.png)\n");
+        }
+    }
+    s += "\n## Files\n\n`runs.jsonl` (one line per run: seeds, metrics, failure), `models.jsonl` (every fitted internal model with its parameters), `summary.json` (cell statistics), `tables/` (Markdown, LaTeX, `cells.csv`), `signals/` (trial 0 of each cell as CSV), `figures/` (SVG and PNG), `provenance.json`.\n";
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::suite::SMALL;
+    use std::path::Path;
+
+    #[test]
+    fn the_report_names_plants_tables_cells_and_figures() {
+        let suite = ControlSuite::parse(SMALL, Path::new("c.toml")).unwrap();
+        let res = ControlResults {
+            runs: Vec::new(),
+            models: Vec::new(),
+            cells: Vec::new(),
+        };
+        let md = report_markdown(&suite, &res, &["rmse_twin_sine5".to_string()]);
+        for part in [
+            "# small\n",
+            "Seed 5, 3 trials per cell",
+            "- `twin`: twin `default`, internal model identified on twin `default`\n",
+            "- `creep`: twin `creep=on`, internal model identified on twin `creep=on`\n",
+            "**Table 1**",
+            "## Every cell",
+            "- [rmse_twin_sine5](figures/rmse_twin_sine5.png)",
+        ] {
+            assert!(md.contains(part), "{part:?} missing in\n{md}");
+        }
+        assert!(
+            !md.contains("## Internal models"),
+            "no IMC, no models section"
+        );
+    }
+}

@@ -1,0 +1,396 @@
+//! What a control suite's numbers become: each cell's statistics over the trials, the
+//! paper-layout tables with the published numbers beside ours, the CSV of every cell and
+//! the pairwise comparisons.
+
+use super::ControlSuite;
+use super::cell_index;
+use super::run::{ControlResults, RunRecord};
+use crate::base::TrialSeed;
+use crate::pipeline::suite::PaperTable;
+use crate::render::latex::{booktabs, latex_escape};
+use crate::render::table::{markdown, sig};
+use crate::report::paper::layout_markdown;
+use crate::stats::{a12, bootstrap_median_ci, describe, mann_whitney};
+use serde::{Deserialize, Serialize};
+use std::fmt::Write as _;
+
+/// Statistics of one cell (controller x plant x reference) over the trials.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CellStats {
+    pub controller: String,
+    pub plant: String,
+    pub reference: String,
+    pub trials: usize,
+    pub failures: usize,
+    /// Median failure time (s) of the failed runs.
+    pub median_failure_s: Option<f64>,
+    pub rmse: MetricStats,
+    pub rmse_steady: MetricStats,
+}
+
+/// Median [95 % bootstrap CI], quartiles and extremes of one metric; failed runs count as
+/// +inf (so a median is finite only when fewer than half the runs failed).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MetricStats {
+    pub median: f64,
+    pub ci: (f64, f64),
+    pub q1: f64,
+    pub q3: f64,
+    pub min: f64,
+    pub max: f64,
+}
+
+/// Bootstrap resamples for the median intervals (as the report's).
+const RESAMPLES: usize = 2000;
+
+fn metric_stats(values: &[f64], rng_key: TrialSeed) -> MetricStats {
+    let d = describe(values);
+    let ci = bootstrap_median_ci(values, 0.95, RESAMPLES, &mut rng_key.rng(0));
+    MetricStats {
+        median: d.median,
+        ci,
+        q1: d.q1,
+        q3: d.q3,
+        min: d.min,
+        max: d.max,
+    }
+}
+
+/// JSON has no infinity: failed runs' +inf is written as null.
+pub(super) fn finite_or_inf(v: Option<f64>) -> f64 {
+    v.unwrap_or(f64::INFINITY)
+}
+
+/// Statistics of every (plant, controller, reference) cell, in plan order.
+pub(super) fn cell_stats(suite: &ControlSuite, runs: &[RunRecord]) -> Vec<CellStats> {
+    let mut cells = Vec::new();
+    for p in &suite.plants {
+        for &ci in &p.controllers {
+            for &ri in &p.references {
+                let (c, r) = (&suite.controllers[ci].id, &suite.references[ri].name);
+                let v: Vec<&RunRecord> = runs
+                    .iter()
+                    .filter(|x| &x.controller == c && x.plant == p.id && &x.reference == r)
+                    .collect();
+                let key = |m: &str| {
+                    TrialSeed::derive(
+                        suite.seed,
+                        &format!("bootstrap:{m}"),
+                        &format!("{c}/{}/{r}", p.id),
+                        0,
+                    )
+                };
+                let rmse: Vec<f64> = v.iter().map(|x| finite_or_inf(x.metrics.rmse_mm)).collect();
+                let steady: Vec<f64> = v
+                    .iter()
+                    .map(|x| finite_or_inf(x.metrics.rmse_steady_mm))
+                    .collect();
+                let mut fail_t: Vec<f64> = v
+                    .iter()
+                    .filter_map(|x| x.metrics.failure.as_ref().map(|f| f.time_s))
+                    .collect();
+                fail_t.sort_by(f64::total_cmp);
+                cells.push(CellStats {
+                    controller: c.clone(),
+                    plant: p.id.clone(),
+                    reference: r.clone(),
+                    trials: v.len(),
+                    failures: fail_t.len(),
+                    median_failure_s: (!fail_t.is_empty())
+                        .then(|| crate::stats::quantile_sorted(&fail_t, 0.5)),
+                    rmse: metric_stats(&rmse, key("rmse")),
+                    rmse_steady: metric_stats(&steady, key("rmse_steady")),
+                });
+            }
+        }
+    }
+    cells
+}
+
+fn find_cell<'a>(res: &'a ControlResults, c: &str, p: &str, r: &str) -> Option<&'a CellStats> {
+    res.cells
+        .iter()
+        .find(|x| x.controller == c && x.plant == p && x.reference == r)
+}
+
+/// "median [lo, hi]", with the failures when there are any.
+pub(super) fn cell_text(s: &CellStats, steady: bool) -> String {
+    let m = if steady { &s.rmse_steady } else { &s.rmse };
+    let value = if m.median.is_finite() {
+        let hi = if m.ci.1.is_finite() {
+            sig(m.ci.1, 3)
+        } else {
+            "∞".into()
+        };
+        format!("{} [{}, {hi}]", sig(m.median, 3), sig(m.ci.0, 3))
+    } else {
+        "diverged".into()
+    };
+    if s.failures > 0 {
+        let t = s
+            .median_failure_s
+            .map(|t| format!(", median at {} s", sig(t, 2)))
+            .unwrap_or_default();
+        format!("{value}; {}/{} diverged{t}", s.failures, s.trials)
+    } else {
+        value
+    }
+}
+
+fn table_cell(
+    t: &PaperTable,
+    suite: &ControlSuite,
+    res: &ControlResults,
+    c: &str,
+) -> Option<String> {
+    let (p, ci, ri) = cell_index(c, &suite.controllers, &suite.plants, &suite.references).ok()?;
+    let s = find_cell(
+        res,
+        &suite.controllers[ci].id,
+        &suite.plants[p].id,
+        &suite.references[ri].name,
+    )?;
+    Some(cell_text(s, t.value.as_deref() == Some("rmse_steady")))
+}
+
+/// A paper-layout table: our median [95 % CI] over trials, the seed's number beside it.
+pub fn table_markdown(t: &PaperTable, suite: &ControlSuite, res: &ControlResults) -> String {
+    let what = if t.value.as_deref() == Some("rmse_steady") {
+        format!("RMSE [mm] after the first {} s", suite.transient)
+    } else {
+        "RMSE [mm] over the whole run".to_string()
+    };
+    let heading = format!(
+        "**{}** ({what}; ours: median [95% CI] over {} noise realisations and model fits, failed runs counted as +inf; the seed's single run in brackets)",
+        t.title, suite.trials
+    );
+    layout_markdown(t, &heading, |c| table_cell(t, suite, res, c))
+}
+
+/// The same table in LaTeX (booktabs): ours, and the seed's number in parentheses.
+pub fn table_latex(t: &PaperTable, suite: &ControlSuite, res: &ControlResults) -> String {
+    let caption = format!(
+        "{} Ours: median over {} trials [95\\% CI]; the seed's single run in parentheses.",
+        latex_escape(&t.title),
+        suite.trials
+    );
+    let mut body = String::new();
+    for row in &t.rows {
+        let cells: Vec<String> = row
+            .cells
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let ours = table_cell(t, suite, res, c).unwrap_or_else(|| "--".into());
+                match row.seed.get(i).copied().filter(|v| v.is_finite()) {
+                    Some(v) => format!("{} ({})", latex_escape(&ours), sig(v, 3)),
+                    None => latex_escape(&ours),
+                }
+            })
+            .collect();
+        writeln!(
+            body,
+            "{} & {} \\\\",
+            latex_escape(&row.label),
+            cells.join(" & ")
+        )
+        .unwrap();
+    }
+    booktabs(
+        &format!("{} ({})", t.id, suite.name),
+        &caption,
+        &t.columns,
+        &body,
+    )
+}
+
+pub(super) fn cells_csv(cells: &[CellStats]) -> String {
+    let mut s = String::from(
+        "controller,plant,reference,trials,failures,rmse_median_mm,rmse_ci_lo,rmse_ci_hi,rmse_q1,rmse_q3,rmse_steady_median_mm,rmse_steady_ci_lo,rmse_steady_ci_hi\n",
+    );
+    for c in cells {
+        writeln!(
+            s,
+            "{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            c.controller,
+            c.plant,
+            c.reference,
+            c.trials,
+            c.failures,
+            c.rmse.median,
+            c.rmse.ci.0,
+            c.rmse.ci.1,
+            c.rmse.q1,
+            c.rmse.q3,
+            c.rmse_steady.median,
+            c.rmse_steady.ci.0,
+            c.rmse_steady.ci.1
+        )
+        .unwrap();
+    }
+    s
+}
+
+/// The first controller of each plant against every other, on each reference: ratio of median RMSEs,
+/// two-sided Mann-Whitney p and A12 (probability that the first has the larger RMSE), and
+/// in how many paired trials (same noise realisation) the first is better.
+pub fn comparison_markdown(suite: &ControlSuite, res: &ControlResults) -> String {
+    let mut rows = Vec::new();
+    for p in &suite.plants {
+        for &ri in &p.references {
+            let r = &suite.references[ri].name;
+            // The plant's first controller against each of the others.
+            if let Some((&a, others)) = p.controllers.split_first() {
+                for &b in others {
+                    let (ca, cb) = (&suite.controllers[a].id, &suite.controllers[b].id);
+                    let get = |c: &str| -> Vec<f64> {
+                        let mut v: Vec<&RunRecord> = res
+                            .runs
+                            .iter()
+                            .filter(|x| x.controller == c && x.plant == p.id && &x.reference == r)
+                            .collect();
+                        v.sort_by_key(|x| x.trial);
+                        v.iter().map(|x| finite_or_inf(x.metrics.rmse_mm)).collect()
+                    };
+                    let (va, vb) = (get(ca), get(cb));
+                    if va.is_empty() || vb.is_empty() {
+                        continue;
+                    }
+                    let (ma, mb) = (describe(&va).median, describe(&vb).median);
+                    let ratio = if ma.is_finite() && mb.is_finite() && ma > 0.0 {
+                        sig(mb / ma, 3)
+                    } else {
+                        "—".into()
+                    };
+                    let mw = mann_whitney(&va, &vb);
+                    let wins = va.iter().zip(&vb).filter(|(x, y)| x < y).count();
+                    rows.push(vec![
+                        p.id.clone(),
+                        r.clone(),
+                        format!("{ca} vs {cb}"),
+                        ratio,
+                        sig(mw.p_value, 2),
+                        format!("{:.2}", a12(&va, &vb)),
+                        format!("{wins}/{}", va.len().min(vb.len())),
+                    ]);
+                }
+            }
+        }
+    }
+    let mut s = String::from(
+        "**Pairwise comparisons** (RMSE over the whole run; ratio = median of the second / median of the first; A12 = P(first's RMSE > second's); wins = paired trials, same noise, where the first is lower)\n\n",
+    );
+    s += &markdown(
+        &[
+            "plant",
+            "reference",
+            "pair",
+            "ratio",
+            "p (MW)",
+            "A12",
+            "first wins",
+        ],
+        &rows,
+        &[false, false, false, true, true, true, true],
+    );
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::suite::SMALL;
+    use std::path::Path;
+
+    fn stats(median: f64) -> MetricStats {
+        MetricStats {
+            median,
+            ci: (median * 0.9, median * 1.1),
+            q1: median,
+            q3: median,
+            min: median,
+            max: median,
+        }
+    }
+
+    fn cell(c: &str, p: &str, failures: usize, rmse: f64) -> CellStats {
+        CellStats {
+            controller: c.into(),
+            plant: p.into(),
+            reference: "sine5".into(),
+            trials: 3,
+            failures,
+            median_failure_s: (failures > 0).then_some(0.25),
+            rmse: stats(rmse),
+            rmse_steady: stats(rmse / 2.0),
+        }
+    }
+
+    #[test]
+    fn failed_runs_count_as_infinite_in_the_median_and_its_interval() {
+        let key = TrialSeed::derive(1, "a", "b", 0);
+        let s = metric_stats(&[1.0, 2.0, f64::INFINITY], key);
+        assert_eq!((s.median, s.max), (2.0, f64::INFINITY));
+        let s = metric_stats(&[1.0, f64::INFINITY, f64::INFINITY], key);
+        assert_eq!(s.median, f64::INFINITY);
+        assert_eq!(finite_or_inf(None), f64::INFINITY);
+    }
+
+    #[test]
+    fn a_cell_reads_median_interval_and_failures() {
+        assert_eq!(
+            cell_text(&cell("P", "twin", 0, 0.02), false),
+            "0.0200 [0.0180, 0.0220]"
+        );
+        assert_eq!(
+            cell_text(&cell("P", "twin", 0, 0.02), true),
+            "0.0100 [0.00900, 0.0110]"
+        );
+        assert_eq!(
+            cell_text(&cell("P", "twin", 1, 0.02), false),
+            "0.0200 [0.0180, 0.0220]; 1/3 diverged, median at 0.25 s"
+        );
+        assert_eq!(
+            cell_text(&cell("P", "twin", 3, f64::INFINITY), false),
+            "diverged; 3/3 diverged, median at 0.25 s"
+        );
+    }
+
+    #[test]
+    fn the_paper_table_puts_the_published_number_beside_ours() {
+        let suite = ControlSuite::parse(SMALL, Path::new("c.toml")).unwrap();
+        let res = ControlResults {
+            runs: Vec::new(),
+            models: Vec::new(),
+            cells: vec![cell("PI", "twin", 0, 0.02)],
+        };
+        let md = table_markdown(&suite.tables[0], &suite, &res);
+        assert!(
+            md.starts_with(
+                "**Table 1** (RMSE [mm] over the whole run; ours: median [95% CI] over 3 noise"
+            ),
+            "{md}"
+        );
+        // The first cell ran and has a published number; the second ran nowhere in `res`.
+        let row = md.lines().find(|l| l.starts_with("| PI")).unwrap();
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        assert_eq!(
+            cells[2..4],
+            ["0.0200 [0.0180, 0.0220] (seed 0.0100)", "not run"],
+            "{md}"
+        );
+        let tex = table_latex(&suite.tables[0], &suite, &res);
+        assert!(
+            tex.contains("0.0200 [0.0180, 0.0220] (0.0100) & --"),
+            "{tex}"
+        );
+        let csv = cells_csv(&res.cells);
+        assert_eq!(csv.lines().count(), 2);
+        assert!(
+            csv.lines()
+                .nth(1)
+                .unwrap()
+                .starts_with("PI,twin,sine5,3,0,0.02,")
+        );
+    }
+}
