@@ -58,7 +58,7 @@ fn generations(c: &mut Criterion) {
 }
 
 /// MSGA trial time on 5 membrane threads and on 1 thread, on a cheap objective (where
-/// synchronisation dominates) and a costly one (where evaluation does), with the seed's
+/// synchronisation dominates) and a costly one (where evaluation does), with the dissertation's
 /// communication rule and with migrants one step late (`migration_lag = 1`).
 fn msga_threads(c: &mut Criterion) {
     let mut g = c.benchmark_group("msga_threads");

@@ -64,7 +64,7 @@ fn bouc_wen_costs(c: &mut Criterion) {
                 .for_each(|(p, o)| bouc_wen_fast::costs(p, &input, o))
         })
     });
-    // The seed's explicit recurrence (one `|h|^n` per sample).
+    // The dissertation's explicit recurrence (one `|h|^n` per sample).
     let explicit = FastInput::explicit(&u, &y);
     g.bench_function("explicit-scalar-reference", |b| {
         b.iter(|| {

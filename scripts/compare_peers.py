@@ -19,7 +19,7 @@ Problems and methods (every method gets exactly the same number of evaluations):
    largest relative difference between the two costs at optbench's final points), the same
    instability bound and penalty, and the same cost cap.
 
-3. Evaluation speed of the seed's Bouc-Wen recurrence (optbench's `scheme = "explicit"`,
+3. Evaluation speed of the dissertation's Bouc-Wen recurrence (optbench's `scheme = "explicit"`,
    src/physics/bouc_wen_fast.rs: one clamped Euler step per sample, one |h|^n) over the
    record and population of `optbench bench` (200 individuals x 10,000 samples): a numpy
    port as fast as numpy allows (vectorised over the population, a loop over time doing
@@ -56,7 +56,7 @@ SINE_1HZ = "sine:freq=1,amp=2.3,offset=2.35,phase=-1.5707963267948966"
 
 
 def griewank(x):
-    """Griewank on rows of x (seed eq. 2.12); minimum 0 at 0."""
+    """Griewank on rows of x (dissertation eq. 2.12); minimum 0 at 0."""
     x = np.atleast_2d(x)
     i = np.sqrt(np.arange(1, x.shape[1] + 1))
     return 1.0 + (x * x).sum(axis=1) / 4000.0 - np.prod(np.cos(x / i), axis=1)
@@ -464,7 +464,7 @@ def main():
 
 def print_speed(sp):
     print(
-        f"The seed's Bouc-Wen recurrence (optbench scheme = \"explicit\"), "
+        f"The dissertation's Bouc-Wen recurrence (optbench scheme = \"explicit\"), "
         f"{sp['population']} individuals x {sp['samples']} samples:"
     )
     for mine, ref in sp["check"]:

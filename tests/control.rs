@@ -87,7 +87,7 @@ fn control_writes_signals_numbers_and_figures() {
 
 #[test]
 fn a_diverging_loop_is_a_result_not_an_error() {
-    // The seed's PID gains on the twin: its 103 Hz mode makes the loop unstable.
+    // The dissertation's PID gains on the twin: its 103 Hz mode makes the loop unstable.
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("pid");
     let o = optbench(
@@ -261,7 +261,7 @@ fn control_suite_runs_through_optbench_run() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(
-        text.contains("Tiny table") && text.contains("(seed 0.00300)"),
+        text.contains("Tiny table") && text.contains("(dissertation 0.00300)"),
         "{text}"
     );
     // 2 controllers x (2 references on twin + 1 on mismatch) x 2 trials.

@@ -77,7 +77,7 @@ fn another_seed_changes_every_cell() {
 
 #[test]
 fn each_seed_optimizer_beats_random_search_on_2d_griewank() {
-    // The seed's Table 2.3 setting at a tenth of the budget (200 x 20), 15 fixed seeds.
+    // The dissertation's Table 2.3 setting at a tenth of the budget (200 x 20), 15 fixed seeds.
     let text = r#"
 name = "beat-random"
 seed = 2013

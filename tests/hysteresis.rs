@@ -1,4 +1,4 @@
-//! Hysteresis fitting: parameter recovery on twin data, the seed's numerical example,
+//! Hysteresis fitting: parameter recovery on twin data, the dissertation's numerical example,
 //! finite costs for hostile parameters, and the shipped suites end to end at small size.
 
 mod common;
@@ -55,7 +55,7 @@ fn metric(obj: &dyn Objective, x: &[f64], name: &str) -> f64 {
 
 const SINE_1HZ: &str = "sine:freq=1,amp=2.3,offset=2.35,phase=-1.5707963267948966";
 
-/// On noise-free twin data whose hysteresis is exactly the seed's Bouc-Wen model (mode,
+/// On noise-free twin data whose hysteresis is exactly the dissertation's Bouc-Wen model (mode,
 /// noise and quantisation off; the 2 kHz amplifier lag is 3e-4 rad at 1 Hz), a fit recovers
 /// what one loop identifies: the linear gain d_e (to 1 %), the initial hysteretic slope
 /// alpha (10 %) and the saturation level (alpha/(beta+gamma))^(1/n) (10 %), with an RMSE
@@ -101,7 +101,7 @@ fn bouc_wen_fit_recovers_what_a_loop_identifies() {
     }
 }
 
-/// The seed's numerical example (eq. 3.18 driven by a 20 Hz sine): the 3-7-1 network trained
+/// The dissertation's numerical example (eq. 3.18 driven by a 20 Hz sine): the 3-7-1 network trained
 /// by PSO and by BP (gradient descent, one gradient = one evaluation) both beat the trivial
 /// model by far on held-out 10 Hz data, and BP at equal evaluations reaches 3 % of the
 /// output amplitude in one-step prediction.
@@ -247,7 +247,7 @@ fn hysteresis_suite_runs_end_to_end_at_small_size() {
         "Table 3.2",
         "Table 3.3",
         "Table 3.4",
-        "(seed 0.0974)",
+        "(dissertation 0.0974)",
         "free-run RMSE",
         "Strong baselines",
     ] {
@@ -448,7 +448,7 @@ fn fit_and_suites_read_lab_files_and_resample_on_request() {
 }
 
 /// Several training records at several sampling intervals, each with an offset of its own:
-/// the Bouc-Wen fit's cost is the sum of each record's (the seed's model is
+/// the Bouc-Wen fit's cost is the sum of each record's (the dissertation's model is
 /// rate-independent, so the intervals do not matter), one offset per record is fitted, and
 /// a short PSO run (fitting both records from rest, as they start) returns the offsets'
 /// difference; the RBF NARX network, a discrete-time
@@ -471,7 +471,7 @@ fn several_training_records_fit_together() {
         r
     };
     let a = sim(SINE_1HZ, 1.0, 1e-3, 0.02);
-    // From near 0 V, as the seed's model starts at rest.
+    // From near 0 V, as the dissertation's model starts at rest.
     let slow = "sine:freq=0.5,amp=2.3,offset=2.35,phase=-1.5707963267948966";
     let b = sim(slow, 2.0, 2.5e-3, 0.07);
     let both = BoucWenFit::new(&[a.clone(), b.clone()], &[], true, false, 0.0, 1.5).unwrap();
@@ -499,7 +499,7 @@ fn several_training_records_fit_together() {
         both.evaluate(&x)
     );
     // At the truth both records are fitted to 0.25 % of the 0.6 mm span (the twin's
-    // amplifier lag and pre-roll are not in the seed's model).
+    // amplifier lag and pre-roll are not in the dissertation's model).
     for m in ["train1 RMSE [mm]", "train2 RMSE [mm]"] {
         let rmse = metric(&both, &x, m);
         assert!(rmse < 1.5e-3, "{m} {rmse}");

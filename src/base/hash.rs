@@ -1,6 +1,6 @@
 //! The one stable hash: FNV-1a, fixed forever, never `std`'s `Hasher` (whose output may
 //! change between releases). Seeds ([`super::seed`]) and the keys of stored trials
-//! (the scale module) are built on it, so a seed or a key means the same bytes everywhere.
+//! (`pipeline::run::trial_key`) are built on it, so a seed or a key means the same bytes everywhere.
 
 pub(crate) const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 const FNV_PRIME: u64 = 0x0000_0100_0000_01b3;

@@ -5,10 +5,10 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct ControlArgs {
-    /// Controller: imc-rbf (the seed's IMC with two RBF networks) or pid (eq. 4.9).
+    /// Controller: imc-rbf (the dissertation's IMC with two RBF networks) or pid (eq. 4.9).
     #[arg(long)]
     pub controller: String,
-    /// Reference in mm: sweep-1-2hz, sweep-1-3hz, sweep-1-4hz, sweep-1-10hz (the seed's),
+    /// Reference in mm: sweep-1-2hz, sweep-1-3hz, sweep-1-4hz, sweep-1-10hz (the dissertation's),
     /// or a signal spec such as "sine:freq=5,amp=0.2,offset=0.3" (with --duration).
     #[arg(long)]
     pub reference: String,

@@ -14,7 +14,7 @@ pub struct FitArgs {
     /// Held-out recording (same forms); the model is never fitted to it. Repeatable. With
     /// several records (training or validation), bouc-wen refits each validation record's
     /// own offset (with d0) and initial state on it, the actuator's parameters held fixed
-    /// (`--param refit_validation=never` keeps the seed's protocol).
+    /// (`--param refit_validation=never` keeps the dissertation's protocol).
     #[arg(long)]
     pub validate: Vec<String>,
     /// Model to fit (a fitting objective of `optbench list`, e.g. bouc-wen or rbf).
@@ -38,7 +38,7 @@ pub struct FitArgs {
     /// records that start in motion (`diagnose` reports such a start-up).
     #[arg(long, allow_negative_numbers = true)]
     pub trim_start: Option<f64>,
-    /// Function evaluations (default: the seed's 200 individuals x 150 iterations).
+    /// Function evaluations (default: the dissertation's 200 individuals x 150 iterations).
     #[arg(long, default_value_t = 30_000)]
     pub budget: u64,
     #[arg(long, default_value_t = 1)]

@@ -34,7 +34,7 @@ pub enum Command {
     Merge(merge::MergeArgs),
     /// Fit one model to one recording with one optimizer; numbers and figures in --out.
     Fit(fit::FitArgs),
-    /// Write piezo-twin recordings: the seed's experiments, or one --signal.
+    /// Write piezo-twin recordings: the dissertation's experiments, or one --signal.
     Simulate(simulate::SimulateArgs),
     /// Locate where a hysteresis model misses a recording, name the missing physics and
     /// fit the better model (or, with --proof, run the concealed-effect proof).

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct SimulateArgs {
-    /// Drive signal, e.g. "sine:freq=10,amp=2.3,offset=2.35" (default: the seed's five
+    /// Drive signal, e.g. "sine:freq=10,amp=2.3,offset=2.35" (default: the dissertation's five
     /// sinusoids and its validation chirp, one CSV each).
     #[arg(long)]
     pub signal: Option<String>,

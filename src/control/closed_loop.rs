@@ -12,7 +12,7 @@ use super::pid::{IncrementalPid, PidGains};
 use super::plant::Plant;
 use serde::{Deserialize, Serialize};
 
-/// Internal model control as in seed Fig. 4.2: the internal model runs beside the plant on
+/// Internal model control as in dissertation Fig. 4.2: the internal model runs beside the plant on
 /// the same commands; the feedback signal is `d̂ = y - y_m`, the controller network acts on
 /// `e = (y_d - d̂) - y_m` (which equals `y_d - y`, eq. 4.1) and is trained through the
 /// model's sensitivity `∂y_m/∂u`.
@@ -50,10 +50,10 @@ impl Imc {
 #[derive(Debug, Clone)]
 pub enum Controller {
     /// Incremental PID on `e = y_d - y` (eq. 4.9). Inside the IMC structure of Fig. 4.2 the
-    /// internal model cancels out of a PID's input, so this is also the seed's "PID instead
+    /// internal model cancels out of a PID's input, so this is also the dissertation's "PID instead
     /// of the RBFNN controller for IMC".
     Pid(IncrementalPid),
-    /// The seed's IMC with two RBF networks.
+    /// The dissertation's IMC with two RBF networks.
     Imc(Box<Imc>),
 }
 

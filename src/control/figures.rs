@@ -1,7 +1,7 @@
-//! The seed's control figures for one run, drawn with the report's plot helpers (bundled
+//! The dissertation's control figures for one run, drawn with the render kit (bundled
 //! font, SVG + PNG, atomic writes): output and reference over time with the tracking error
 //! below (Fig. 4.3, 4.5, 4.7, 4.9), and output against reference, the hysteresis
-//! compensation picture (Fig. 4.4, 4.6, 4.8, 4.10), with the transient removed as the seed
+//! compensation picture (Fig. 4.4, 4.6, 4.8, 4.10), with the transient removed as the dissertation
 //! did, and the transient on its own.
 
 use super::closed_loop::LoopRun;

@@ -1,4 +1,4 @@
-//! Hysteresis compensation by feedback (seed chapter 4): internal model control (IMC) with
+//! Hysteresis compensation by feedback (dissertation chapter 4): internal model control (IMC) with
 //! two RBF networks against the incremental PID baseline, in closed loop at 1 ms on the
 //! piezo twin.
 //!
@@ -7,7 +7,7 @@
 //! - [`network`]: the 2-7-1 controller network of eq. 4.1-4.8, trained online.
 //! - [`model`]: the internal model, the RBF NARX network fitted by PSO to twin data.
 //! - [`closed_loop`]: the sampled loop, the IMC structure of Fig. 4.2, the divergence guard.
-//! - [`reference`]: the seed's rising-frequency sinusoids and any signal as a reference.
+//! - [`reference`]: the dissertation's rising-frequency sinusoids and any signal as a reference.
 
 pub mod closed_loop;
 pub mod figures;

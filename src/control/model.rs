@@ -1,4 +1,4 @@
-//! The internal model of the IMC loop (seed Fig. 4.2): the RBF NARX network of seed §3.2,
+//! The internal model of the IMC loop (dissertation Fig. 4.2): the RBF NARX network of dissertation §3.2,
 //! fitted by PSO to a twin recording through the ordinary fitting objective
 //! ([`RbfFit`]) and the harness ([`run_trial`]), then run in parallel with the plant.
 
@@ -45,7 +45,7 @@ pub struct RbfModel {
     pub sensitivity: Sensitivity,
 }
 
-/// The plant sensitivity the controller is trained through (the seed does not say which).
+/// The plant sensitivity the controller is trained through (the dissertation does not say which).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Sensitivity {
@@ -172,7 +172,7 @@ impl RbfModel {
     }
 }
 
-/// How the internal model is identified: the seed's PSO fit of its 3-7-1 network on a
+/// How the internal model is identified: the dissertation's PSO fit of its 3-7-1 network on a
 /// twin recording.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -187,7 +187,7 @@ pub struct ModelFitConfig {
     pub input_lags: usize,
     pub output_lags: usize,
     /// `free-run` (default: the internal model runs in parallel with the plant on its own
-    /// outputs, so that is what it is fitted for) or `one-step` (the seed's Table 3.3 cost;
+    /// outputs, so that is what it is fitted for) or `one-step` (the dissertation's Table 3.3 cost;
     /// such models drift in free run and the IMC loop tracks poorly with them).
     pub mode: String,
     /// PSO swarm size.

@@ -1,4 +1,4 @@
-//! The controller network of seed §4.1: a 2-7-1 Gaussian RBF network (eq. 4.3-4.4) whose
+//! The controller network of dissertation §4.1: a 2-7-1 Gaussian RBF network (eq. 4.3-4.4) whose
 //! inputs are the tracking error and its change (eq. 4.1-4.2), trained online by
 //! back-propagation with a momentum term (eq. 4.5-4.8) through the internal model's
 //! sensitivity `∂y/∂u`.
@@ -6,7 +6,7 @@
 use crate::physics::rbf::RbfNet;
 use serde::{Deserialize, Serialize};
 
-/// Settings of the controller network. The seed gives the structure and the update law but
+/// Settings of the controller network. The dissertation gives the structure and the update law but
 /// no numbers. The defaults were chosen by a grid over (error_scale, η, β) on eight
 /// internal models (fit seeds 1-8, twin noise seed 7, none of them a suite's seed): the
 /// lowest median RMSE on the 1 -> 2 Hz and 1 -> 4 Hz references without a diverged run.

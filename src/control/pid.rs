@@ -1,8 +1,8 @@
-//! The seed's baseline: the incremental (velocity-form) PID of eq. 4.9.
+//! The dissertation's baseline: the incremental (velocity-form) PID of eq. 4.9.
 
 use serde::{Deserialize, Serialize};
 
-/// Gains of eq. 4.9, in command units per unit of error (V/mm on the twin). The seed set
+/// Gains of eq. 4.9, in command units per unit of error (V/mm on the twin). The dissertation set
 /// (1.0, 0.8, 0.6) "by trial and error" without stating units; we read them as V per mm.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct PidGains {
@@ -23,7 +23,7 @@ impl Default for PidGains {
 
 /// `du(k) = kp [e(k) - e(k-1)] + ki e(k) + kd [e(k) - 2 e(k-1) + e(k-2)]`, `u(k) = u(k-1) +
 /// du(k)`, with `e(-1) = e(-2) = 0` and `u(-1) = u0`. Only the last two errors and the last
-/// command are kept, which is why the seed calls it easy to initialise.
+/// command are kept, which is why the dissertation calls it easy to initialise.
 #[derive(Debug, Clone, PartialEq)]
 pub struct IncrementalPid {
     gains: PidGains,

@@ -41,7 +41,7 @@ impl Plant for LinearPlant {
 }
 
 /// An RBF NARX model run as the plant (free run from rest): with the same model inside an
-/// IMC loop the model is perfect, the case in which the seed says the feedback is zero.
+/// IMC loop the model is perfect, the case in which the dissertation says the feedback is zero.
 #[derive(Debug, Clone)]
 pub struct ModelPlant(pub RbfModel);
 

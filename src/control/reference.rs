@@ -1,4 +1,4 @@
-//! Reference trajectories (mm) for the closed loop: the seed's sinusoids whose frequency
+//! Reference trajectories (mm) for the closed loop: the dissertation's sinusoids whose frequency
 //! rises with time (§4.2: 1 -> 2, 1 -> 3, 1 -> 4 and 1 -> 10 Hz), or any signal of the
 //! signal library ([`crate::data::signal`]).
 
@@ -6,13 +6,13 @@ use crate::base::error::{Error, Result};
 use crate::data::signal::{ChirpLaw, Signal};
 use std::f64::consts::FRAC_PI_2;
 
-/// Seconds of the seed's sweeps: the frequency rises linearly over the whole run.
+/// Seconds of the dissertation's sweeps: the frequency rises linearly over the whole run.
 pub const SWEEP_SECONDS: f64 = 5.0;
 /// Mid-range of the sweeps (mm): the twin spans 0-0.6 mm over its 0-70 V drive.
 pub const SWEEP_OFFSET: f64 = 0.3;
 /// Amplitude of the sweeps (mm): 0.05-0.55 mm, inside the span with a margin at both ends.
 pub const SWEEP_AMP: f64 = 0.25;
-/// The seed's end frequencies (Hz), all sweeps starting at 1 Hz.
+/// The dissertation's end frequencies (Hz), all sweeps starting at 1 Hz.
 pub const SEED_SWEEPS: [f64; 4] = [2.0, 3.0, 4.0, 10.0];
 
 /// A named reference trajectory of fixed length.
@@ -26,8 +26,8 @@ pub struct Reference {
 }
 
 impl Reference {
-    /// The seed's sinusoid from 1 Hz rising linearly to `f1` Hz over [`SWEEP_SECONDS`]
-    /// (phase-continuous; the seed's figures are not available and its text does not say
+    /// The dissertation's sinusoid from 1 Hz rising linearly to `f1` Hz over [`SWEEP_SECONDS`]
+    /// (phase-continuous; the dissertation's figures are not available and its text does not say
     /// how the frequency changed), 0.05-0.55 mm, starting at the bottom (phase −π/2) so the
     /// loop does not begin with a jump.
     pub fn sweep(f1: f64) -> Reference {
@@ -46,7 +46,7 @@ impl Reference {
         }
     }
 
-    /// The seed's four sweeps of §4.2.
+    /// The dissertation's four sweeps of §4.2.
     pub fn seed_references() -> Vec<Reference> {
         SEED_SWEEPS.iter().map(|&f| Reference::sweep(f)).collect()
     }

@@ -12,10 +12,10 @@ use crate::base::error::{Error, Result};
 use crate::physics::twin::{Twin, TwinConfig};
 use serde::{Deserialize, Serialize};
 
-/// Sample interval of the loop (s): the seed's 1 ms.
+/// Sample interval of the loop (s): the dissertation's 1 ms.
 pub const DT: f64 = 1e-3;
 
-/// Seconds at the start treated as the transient (the seed removed it from its
+/// Seconds at the start treated as the transient (the dissertation removed it from its
 /// hysteresis-compensation figures and says errors fall "within a single second").
 pub const DEFAULT_TRANSIENT_S: f64 = 1.0;
 
@@ -24,9 +24,12 @@ pub const CONTROLLER_KINDS: [&str; 2] = ["imc-rbf", "pid"];
 
 /// Parameters of each kind: (name, meaning).
 pub const PID_KEYS: &[(&str, &str)] = &[
-    ("kp", "proportional gain of eq. 4.9, V/mm (seed 1.0)"),
-    ("ki", "integral gain, V/mm per sample (seed 0.8)"),
-    ("kd", "derivative gain, V/mm (seed 0.6)"),
+    (
+        "kp",
+        "proportional gain of eq. 4.9, V/mm (dissertation 1.0)",
+    ),
+    ("ki", "integral gain, V/mm per sample (dissertation 0.8)"),
+    ("kd", "derivative gain, V/mm (dissertation 0.6)"),
 ];
 
 /// Parameters of `imc-rbf`: (name, meaning).

@@ -1,5 +1,5 @@
 //! `optbench control`: one closed-loop run on the twin, its signals as CSV, its numbers as
-//! JSON and the seed's figures.
+//! JSON and the dissertation's figures.
 
 use super::closed_loop::Guard;
 use super::figures::write_run_figures;

@@ -13,7 +13,7 @@
 //! (0.25-2.5 Hz) plus a small fast one (20-120 Hz, 1.5 % of its RMS), so
 //! lag, delay and a mode show in amplitude and phase where they differ; validation is a
 //! different signal, a 0.7 Hz triangle plus a small 15-150 Hz log chirp. Both are scaled to
-//! span 0.05-4.65 V (0-70 V of drive, the seed's range).
+//! span 0.05-4.65 V (0-70 V of drive, the dissertation's range).
 
 use super::{Diagnosis, Options, diagnose};
 use crate::base::TrialSeed;
@@ -120,7 +120,7 @@ pub fn signals(seconds: f64, dt: f64, seed: u64) -> Result<(Vec<f64>, Vec<f64>)>
         "triangle:freq=0.7,amp=2,phase=-1.5707963,offset=2.35 \
          + chirp:f0=15,f1=150,duration={seconds},law=log,amp=0.012"
     ))?;
-    // Both span the seed's 0-70 V drive (0.05-4.65 V command), so the peak (and a
+    // Both span the dissertation's 0-70 V drive (0.05-4.65 V command), so the peak (and a
     // saturation case's clipping) does not depend on the noise seed's phases.
     let span = |x: Vec<f64>| -> Vec<f64> {
         let (lo, hi) = x

@@ -1,7 +1,7 @@
 //! The harness owns everything around an optimizer: the contract an optimizer implements
 //! ([`Optimizer`], [`OptimizerConfig`]), evaluation counting and budgets ([`Evaluator`]),
 //! and the record a trial leaves ([`TrialRecord`]). The trial loop that drives it all is
-//! above, in the runner (`runner/trial.rs`).
+//! above, in the runner (`pipeline/runner/trial.rs`).
 
 pub mod contract;
 pub mod evaluator;

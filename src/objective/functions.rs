@@ -1,6 +1,6 @@
 //! Standard test functions in any dimension.
 //!
-//! Griewank and Schwefel follow the seed (eq. 2.12, 2.13); the seed's Schwefel has no
+//! Griewank and Schwefel follow the dissertation (eq. 2.12, 2.13); the dissertation's Schwefel has no
 //! `418.9829 * d` offset, so its minimum is [`SCHWEFEL_MIN_PER_DIM`] per dimension.
 
 use super::{Bounds, Objective};
@@ -49,10 +49,10 @@ impl TestFunction {
         match self {
             TestFunction::Sphere => "sum x_i^2; unimodal, minimum 0 at 0",
             TestFunction::Griewank => {
-                "1 + sum x_i^2/4000 - prod cos(x_i/sqrt(i)) (seed eq. 2.12); minimum 0 at 0"
+                "1 + sum x_i^2/4000 - prod cos(x_i/sqrt(i)) (dissertation eq. 2.12); minimum 0 at 0"
             }
             TestFunction::Schwefel => {
-                "-sum x_i sin(sqrt|x_i|) (seed eq. 2.13, no offset); minimum -418.9829*dim at x_i = 420.9687"
+                "-sum x_i sin(sqrt|x_i|) (dissertation eq. 2.13, no offset); minimum -418.9829*dim at x_i = 420.9687"
             }
             TestFunction::Rastrigin => "10 d + sum (x_i^2 - 10 cos 2 pi x_i); minimum 0 at 0",
             TestFunction::Rosenbrock => {
@@ -287,7 +287,7 @@ mod tests {
         // Hand-computed: Griewank(pi, 0) = 1 + pi^2/4000 - cos(pi) = 2 + pi^2/4000.
         let g = f(TestFunction::Griewank, &[PI, 0.0]);
         assert!((g - (2.0 + PI * PI / 4000.0)).abs() < 1e-15);
-        // Griewank's second coordinate is scaled by 1/sqrt(2) (seed eq. 2.12).
+        // Griewank's second coordinate is scaled by 1/sqrt(2) (dissertation eq. 2.12).
         let y = 2f64.sqrt() * PI;
         let g2 = f(TestFunction::Griewank, &[0.0, y]);
         assert!((g2 - (2.0 + y * y / 4000.0)).abs() < 1e-15);
@@ -309,7 +309,7 @@ mod tests {
 
     #[test]
     fn schwefel_seed_table_value() {
-        // The seed's Table 2.4 MSGA row: (420.9711, 420.9487) -> -837.9657.
+        // The dissertation's Table 2.4 MSGA row: (420.9711, 420.9487) -> -837.9657.
         let v = f(TestFunction::Schwefel, &[420.9711, 420.9487]);
         assert!((v - -837.9657).abs() < 1e-4, "{v}");
     }

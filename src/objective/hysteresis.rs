@@ -3,7 +3,7 @@
 //! Data are normalised before fitting (input and output divided by their largest absolute
 //! value on the training record), so one set of parameter bounds serves an actuator in
 //! volts and millimetres and a benchmark in newtons and metres alike; validation data use
-//! the training scales. Costs are J = sum(e^2)/2 (seed eq. 3.8-3.9) in normalised units;
+//! the training scales. Costs are J = sum(e^2)/2 (dissertation eq. 3.8-3.9) in normalised units;
 //! reports present them as RMSE in the recording's units.
 
 use super::{Bounds, Metric, Objective, Presentation, PresentationKind};
@@ -201,7 +201,7 @@ fn errors(meas: &[f64], model: &[f64], start: usize, scale: f64) -> (f64, f64) {
     (e.max_abs * scale, e.rms * scale)
 }
 
-/// Fit of a Gaussian RBF NARX network (seed section 3.2) to one or several recordings
+/// Fit of a Gaussian RBF NARX network (dissertation section 3.2) to one or several recordings
 /// (the costs summed, the regressors restarting on each).
 pub struct RbfFit {
     net: RbfNet,
@@ -412,7 +412,7 @@ impl Objective for RbfFit {
     }
 }
 
-/// Fit of the seed's Bouc-Wen model (eq. 3.1-3.3) to one or several recordings:
+/// Fit of the dissertation's Bouc-Wen model (eq. 3.1-3.3) to one or several recordings:
 /// parameters (d_e, alpha, beta, gamma, n) and optionally an offset d0 per training record,
 /// in normalised units, cost from a free-run simulation of each record (eq. 3.8-3.9),
 /// summed. The model is rate-independent, so records at any sampling intervals fit
@@ -422,10 +422,10 @@ impl Objective for RbfFit {
 /// record taken later in a session starts mid-loop): the search variable is the fraction
 /// `q` in [-1, 1] of the loop's saturation level `(alpha/(beta+gamma))^(1/n)`, the range a
 /// run from rest can reach, so `h0 = q · saturation` (0 where the parameters have no
-/// saturation level). With one training record every run starts from rest, as the seed's.
+/// saturation level). With one training record every run starts from rest, as the dissertation's.
 ///
 /// Validation records: with one training and one validation record the validation record
-/// is predicted from rest with the first training record's d0 (the seed's protocol). With
+/// is predicted from rest with the first training record's d0 (the dissertation's protocol). With
 /// more records, each validation record's own nuisances are refitted on it with the
 /// actuator's parameters held fixed: its offset d0 (when d0 is fitted) in closed form (the
 /// mean residual) and its initial state by a bounded 1-D search over `q`.
@@ -543,7 +543,7 @@ impl BoucWenFit {
     }
 
     /// Whether validation records get their offset and initial state refitted on them:
-    /// `Some(true)` always, `Some(false)` never (the seed's protocol: from rest with the
+    /// `Some(true)` always, `Some(false)` never (the dissertation's protocol: from rest with the
     /// first training record's offset), `None` (the default) with more than one training or
     /// more than one validation record.
     pub fn with_validation_refit(mut self, refit: Option<bool>) -> Self {
@@ -978,7 +978,7 @@ pub(crate) mod tests {
 
     /// A validation record with an offset and a mid-loop start of its own, beside two
     /// training records: at the actuator's true parameters its refitted offset and initial
-    /// state are the truth's and its RMSE is the noise's, where the seed's protocol (the
+    /// state are the truth's and its RMSE is the noise's, where the dissertation's protocol (the
     /// first training record's offset, from rest) is far off.
     #[test]
     fn validation_records_get_their_offset_and_initial_state_refitted() {
@@ -1004,7 +1004,7 @@ pub(crate) mod tests {
         let rmse = metric(&fit, &x, "v RMSE");
         let d0 = named(&fit, &x, "validate v d0 []");
         let h0 = named(&fit, &x, "validate v h0 []");
-        // The seed's protocol: from rest with the first record's offset.
+        // The dissertation's protocol: from rest with the first record's offset.
         let old = {
             let mut out = vec![0.0; v.len()];
             let p = BoucWenParams { d0: 0.02, ..TRUTH };
@@ -1040,7 +1040,7 @@ pub(crate) mod tests {
         assert_eq!(metric(&two, &x1, "w RMSE"), rmse);
     }
 
-    /// One training and one validation record: the seed's protocol, bit for bit (training
+    /// One training and one validation record: the dissertation's protocol, bit for bit (training
     /// from rest; validation from rest with the training record's offset), on every scheme.
     #[test]
     fn one_training_and_one_validation_record_keep_the_seed_protocol() {

@@ -6,7 +6,7 @@
 //!   picked by name, read with [`ReadOptions`] (suite keys `resample`, `delimiter`);
 //! - `twin:<signal>`: the piezo twin driven by a signal (see [`crate::data::signal`]), simulated
 //!   from a fixed noise seed, so a suite regenerates the same recording every time;
-//! - `eq318:<signal>`: the seed's numerical identification example (eq. 3.18).
+//! - `eq318:<signal>`: the dissertation's numerical identification example (eq. 3.18).
 
 use crate::base::error::{Error, Result};
 use crate::data::recording::{Columns, ReadOptions, Recording, data_dir};
@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 pub struct SimOptions {
     /// Seconds of signal (chirps carry their own duration when this is None).
     pub duration: Option<f64>,
-    /// Sampling interval in seconds (1 ms, as in the seed).
+    /// Sampling interval in seconds (1 ms, as in the dissertation).
     pub dt: f64,
     /// Twin overrides, e.g. `mode=off,creep=on`.
     pub twin: String,

@@ -1,4 +1,4 @@
-//! Real-coded genetic algorithm, the seed's "classical GA" (section 2.3.3): roulette-wheel
+//! Real-coded genetic algorithm, the dissertation's "classical GA" (section 2.3.3): roulette-wheel
 //! selection ([`Roulette`]), arithmetic crossover with probability `pc`, per-gene mutation
 //! with probability `pm`, and optional elitism. Generational: each generation replaces the
 //! whole population except the `elite` best, which are carried over unevaluated.
@@ -10,7 +10,7 @@ use crate::objective::Bounds;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 
-/// GA settings. Defaults follow the seed's Table 3.1 (which the seed applies to GA too).
+/// GA settings. Defaults follow the dissertation's Table 3.1 (which the dissertation applies to GA too).
 #[derive(Debug, Clone)]
 pub struct GaConfig {
     pub population: usize,

@@ -1,11 +1,11 @@
 //! Back-propagation baseline: gradient descent with a momentum term,
-//! `dp(k) = -eta * grad J(p(k)) + mu * dp(k-1)` (the update of seed eq. 4.6-4.8), on the
+//! `dp(k) = -eta * grad J(p(k)) + mu * dp(k-1)` (the update of dissertation eq. 4.6-4.8), on the
 //! objective's analytic gradient, one full-data gradient per iteration. Each gradient counts
 //! as one evaluation. The start point is uniform in the box (from the trial's stream); steps
 //! that leave the box are clipped to it. The rate adapts by the classic "bold driver" rule
 //! for back-propagation (Vogl et al. 1988): a step that increases the cost is undone, the
 //! rate halved and the momentum reset; a step that decreases it grows the rate by 5 %. The
-//! seed uses a fixed rate; without the adaptation a fixed rate either diverges or crawls, and
+//! dissertation uses a fixed rate; without the adaptation a fixed rate either diverges or crawls, and
 //! a baseline should be a fair one.
 
 use crate::base::TrialSeed;

@@ -1,8 +1,8 @@
-//! Membrane-structure genetic algorithm (MSGA), seed sections 2.4.2 and 3.1.1.
+//! Membrane-structure genetic algorithm (MSGA), dissertation sections 2.4.2 and 3.1.1.
 //!
-//! # Structure (seed Fig. 3.3)
+//! # Structure (dissertation Fig. 3.3)
 //! Five membranes: the skin (0) contains membranes 1, 2 and 3; membrane 3 contains 4. The
-//! elementary membranes are 1, 2 and 4, as in the seed. Each membrane holds `objects`
+//! elementary membranes are 1, 2 and 4, as in the dissertation. Each membrane holds `objects`
 //! objects (40; 200 in all) and evolves them with its own rules and its own ChaCha stream
 //! (stream `1 + membrane`).
 //!
@@ -15,7 +15,7 @@
 //!    from its interval.
 //! 4. *Shift* (eq. 3.7): with probability `ps` an object swaps two of its genes (clipped to
 //!    the destination's interval when the bounds differ).
-//! 5. The candidates are evaluated, and the seed's replacement rule of eq. 3.4 is applied
+//! 5. The candidates are evaluated, and the dissertation's replacement rule of eq. 3.4 is applied
 //!    slot by slot: object `i` is replaced by candidate `i` when the candidate is at least
 //!    as good (`f_n <= f_i`), so a membrane never loses its best object.
 //!
@@ -23,12 +23,12 @@
 //! After each evolution step every membrane sends copies of its best `exchange` share
 //! (30 %, 12 objects) to each neighbour in the tree (its parent and its children) over a
 //! channel, and takes in what its neighbours sent after the same step (`migration_lag =
-//! 0`, the seed's rule) or after their previous step (`migration_lag = 1`, so that no
+//! 0`, the dissertation's rule) or after their previous step (`migration_lag = 1`, so that no
 //! membrane waits for a neighbour's current step; see below). A receiver takes the incoming
 //! objects in a fixed order (parent first, then children by label); each one that is not
 //! already present and beats the receiver's current worst object replaces that worst
-//! object. The seed does not say who receives the best objects; exchanging along the tree
-//! edges in both directions lets good objects reach the skin, which the seed names as the
+//! object. The dissertation does not say who receives the best objects; exchanging along the tree
+//! edges in both directions lets good objects reach the skin, which the dissertation names as the
 //! output, while inner membranes keep evolving their own lines. The harness records the
 //! best of every evaluation, so the reported result is the best object found anywhere,
 //! which the skin holds one or two rounds later.
@@ -38,7 +38,7 @@
 //! each membrane its evaluations two rounds ahead, the membrane evolves and evaluates on its
 //! thread, reports back, and exchanges migrants with its neighbours directly over channels.
 //! No coordinator round is a barrier: a membrane waits only for its neighbours' migrants.
-//! With the seed's rule that still couples neighbours every step, so membranes drift at
+//! With the dissertation's rule that still couples neighbours every step, so membranes drift at
 //! most the tree's diameter apart; with `migration_lag = 1` a membrane that finishes a
 //! step early starts its next one at once and only waits if a neighbour has not yet
 //! finished the step before, which keeps two cores busier. Results stay deterministic
@@ -58,10 +58,10 @@ use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use std::thread::JoinHandle;
 
-/// Parent of each membrane in the seed's structure (Fig. 3.3); `None` is the skin.
+/// Parent of each membrane in the dissertation's structure (Fig. 3.3); `None` is the skin.
 pub const SEED_STRUCTURE: [Option<usize>; 5] = [None, Some(0), Some(0), Some(0), Some(3)];
 
-/// MSGA settings; defaults are the seed's Table 3.1.
+/// MSGA settings; defaults are the dissertation's Table 3.1.
 #[derive(Debug, Clone)]
 pub struct MsgaConfig {
     /// Parent of each membrane (`None` for the skin).
@@ -75,7 +75,7 @@ pub struct MsgaConfig {
     pub exchange: f64,
     /// One OS thread per membrane (true) or all membranes in the calling thread (false).
     pub threads: bool,
-    /// Evolution steps late that migrants are taken in (0: the seed's rule; 1: the
+    /// Evolution steps late that migrants are taken in (0: the dissertation's rule; 1: the
     /// previous step's, so membranes need not wait for each other).
     pub migration_lag: usize,
 }

@@ -68,7 +68,7 @@ impl Roulette {
 /// How a gene is mutated.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Mutation {
-    /// Replace the gene by a uniform draw from its interval (seed eq. 3.5, v' = eta).
+    /// Replace the gene by a uniform draw from its interval (dissertation eq. 3.5, v' = eta).
     Uniform,
     /// Add N(0, (sigma * width)^2) and clip to the interval.
     Gaussian { sigma: f64 },
@@ -92,7 +92,7 @@ impl Mutation {
     }
 }
 
-/// Arithmetic crossover (seed eq. 3.6): `c1 = a p1 + (1 - a) p2`, `c2 = (1 - a) p1 + a p2`.
+/// Arithmetic crossover (dissertation eq. 3.6): `c1 = a p1 + (1 - a) p2`, `c2 = (1 - a) p1 + a p2`.
 /// A convex combination, so children of in-bounds parents are in bounds.
 pub fn arithmetic_crossover(a: f64, p1: &[f64], p2: &[f64], c1: &mut [f64], c2: &mut [f64]) {
     for i in 0..p1.len() {

@@ -1,4 +1,4 @@
-//! Particle swarm optimisation, seed eq. 3.15/3.16:
+//! Particle swarm optimisation, dissertation eq. 3.15/3.16:
 //! `v <- w v + c1 r1 (p - x) + c2 r2 (g - x)`, `x <- x + v`, with r1, r2 drawn per particle
 //! and per dimension. The global best `g` is updated synchronously after each swarm
 //! evaluation. Velocities are clamped to `vmax` times the domain width; a particle that

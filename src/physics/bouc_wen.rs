@@ -1,4 +1,4 @@
-//! The Bouc-Wen hysteresis model of the seed (eq. 2.7 and 3.1-3.3), the one implementation
+//! The Bouc-Wen hysteresis model of the dissertation (eq. 2.7 and 3.1-3.3), the one implementation
 //! used by the twin, the fitting objectives, the diagnosis and the controllers.
 //!
 //! Output `D = d_e u + d0 - h`, with `dh/dt = α u̇ - β|u̇||h|^(n-1) h - γ u̇ |h|^n`.
@@ -46,7 +46,7 @@
 //! reaches 2000× its saturation level), so a fitting objective would score numerical
 //! artefacts instead of physics.
 
-/// Parameters of seed eq. 3.1-3.3: `D = d_e u + d0 - h`, `h` from the Bouc-Wen ODE.
+/// Parameters of dissertation eq. 3.1-3.3: `D = d_e u + d0 - h`, `h` from the Bouc-Wen ODE.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BoucWenParams {
     /// Linear gain (output units per input unit, e.g. mm/V).

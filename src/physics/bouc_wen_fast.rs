@@ -91,7 +91,7 @@ pub struct FastInput {
     /// `|Δu| / m` (0 on the first sample and where the input holds).
     ell: Vec<f64>,
     substeps: usize,
-    /// The seed's explicit recurrence instead of the predictor-corrector scheme.
+    /// The dissertation's explicit recurrence instead of the predictor-corrector scheme.
     explicit: bool,
     umax: f64,
     cap: f64,
@@ -791,7 +791,7 @@ mod tests {
     }
 
     fn population(k: usize) -> Vec<BoucWenParams> {
-        // Deterministic spread over the seed's [0, 1.5] box, hostile corners included.
+        // Deterministic spread over the dissertation's [0, 1.5] box, hostile corners included.
         (0..k)
             .map(|i| {
                 let t = |a: usize| ((i * a + 7) % 97) as f64 / 96.0 * 1.5;

@@ -42,7 +42,7 @@ pub fn bouc_wen_population(k: usize, seed: u64) -> Vec<BoucWenParams> {
         .collect()
 }
 
-/// `k` row-major parameter vectors of the seed's 3-7-1 network on `(u, y)`, each entry
+/// `k` row-major parameter vectors of the dissertation's 3-7-1 network on `(u, y)`, each entry
 /// within ±20 % of the usual initialisation.
 pub fn rbf_population(u: &[f64], y: &[f64], k: usize, seed: u64) -> Vec<f64> {
     let (net, narx) = (RbfNet::SEED, Narx::SEED);

@@ -1,7 +1,7 @@
 //! Physics models of piezo actuators, shared by the twin (simulation), the fitting
 //! objectives, diagnosis and control: one implementation of each model.
 //!
-//! - [`bouc_wen`]: the seed's Bouc-Wen hysteresis model, stepped exactly (`n = 1`) or by RK4
+//! - [`bouc_wen`]: the dissertation's Bouc-Wen hysteresis model, stepped exactly (`n = 1`) or by RK4
 //!   in the input, with a free-run simulation and the fitting cost.
 //! - [`linear`]: linear blocks (structural mode, low-pass, creep chain, delay), exactly
 //!   discretised, each with a one-step API.

@@ -1,8 +1,8 @@
 //! Gaussian radial-basis-function (RBF) networks and the NARX hysteresis model built on them
-//! (seed §3.2, eq. 3.10-3.19), with the seed's back-propagation (BP) baseline.
+//! (dissertation §3.2, eq. 3.10-3.19), with the dissertation's back-propagation (BP) baseline.
 //!
 //! The network is deliberately generic (`inputs`-`hidden`-1, gradients with respect to both
-//! parameters and inputs) because the same code is the 2-7-1 controller of seed §4.1
+//! parameters and inputs) because the same code is the 2-7-1 controller of dissertation §4.1
 //! (eq. 4.3-4.8), trained online through the plant model.
 //!
 //! # Parameter vector layout
@@ -16,11 +16,11 @@
 //! | `p[H*I .. H*I + H]`       | widths `b_j`                                       |
 //! | `p[H*I + H .. H*(I + 2)]` | output weights `w_j`                               |
 //!
-//! The seed's 3-7-1 net therefore has 21 + 7 + 7 = 35 parameters (its "individual length 35").
+//! The dissertation's 3-7-1 net therefore has 21 + 7 + 7 = 35 parameters (its "individual length 35").
 //!
 //! # Model modes
 //!
-//! [`Mode::OneStepAhead`] feeds the *measured* past outputs into the regressors, as the seed
+//! [`Mode::OneStepAhead`] feeds the *measured* past outputs into the regressors, as the dissertation
 //! did; it is easy to fit and flatters the model, since each prediction is corrected by the
 //! measurement. [`Mode::FreeRun`] feeds back the model's *own* past outputs: a simulation from
 //! the input alone, which is what a model used for control must do.
@@ -38,7 +38,7 @@ pub const CAP_FACTOR: f64 = 1e3;
 
 /// Optimizer bounds for output weights: `±WEIGHT_BOUND_FACTOR` times the output scale. With
 /// overlapping Gaussians, weights a few times the output magnitude are needed to shape the
-/// output (neighbouring nodes partly cancel); BP fits of the seed's eq. 3.18 data stay well
+/// output (neighbouring nodes partly cancel); BP fits of the dissertation's eq. 3.18 data stay well
 /// inside this.
 pub const WEIGHT_BOUND_FACTOR: f64 = 10.0;
 
@@ -46,8 +46,8 @@ pub const WEIGHT_BOUND_FACTOR: f64 = 10.0;
 /// Gaussians fall between neighbouring samples of typical records and only overfit.
 pub const WIDTH_BOUND_LO_FRAC: f64 = 1e-2;
 
-/// An `inputs`-`hidden`-1 Gaussian RBF network (seed eq. 3.12, 3.14):
-/// `h_j = exp(-‖x - c_j‖² / (2 b_j²))`, `y = Σ_j w_j h_j`. No bias term, as in the seed.
+/// An `inputs`-`hidden`-1 Gaussian RBF network (dissertation eq. 3.12, 3.14):
+/// `h_j = exp(-‖x - c_j‖² / (2 b_j²))`, `y = Σ_j w_j h_j`. No bias term, as in the dissertation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RbfNet {
     pub inputs: usize,
@@ -55,13 +55,13 @@ pub struct RbfNet {
 }
 
 impl RbfNet {
-    /// The seed's 3-7-1 hysteresis model (§3.2).
+    /// The dissertation's 3-7-1 hysteresis model (§3.2).
     pub const SEED: RbfNet = RbfNet {
         inputs: 3,
         hidden: 7,
     };
 
-    /// The seed's 2-7-1 controller (§4.1).
+    /// The dissertation's 2-7-1 controller (§4.1).
     pub const CONTROLLER: RbfNet = RbfNet {
         inputs: 2,
         hidden: 7,
@@ -110,7 +110,7 @@ impl RbfNet {
     }
 
     /// Output `y(x)`; overwrites `grad` (length [`Self::n_params`]) with `∂y/∂p` in the
-    /// parameter layout. This is the per-sample building block of BP (seed eq. 4.6-4.8) and of
+    /// parameter layout. This is the per-sample building block of BP (dissertation eq. 4.6-4.8) and of
     /// [`Regressors::cost_grad`].
     pub fn eval_grad(&self, p: &[f64], x: &[f64], grad: &mut [f64]) -> f64 {
         let (c, b, w) = self.split(p);
@@ -142,7 +142,7 @@ impl RbfNet {
     }
 
     /// Output `y(x)`; overwrites `dx` (length [`Self::inputs`]) with `∂y/∂x`. The controller of
-    /// seed §4.1 back-propagates the tracking error through the plant model with this.
+    /// dissertation §4.1 back-propagates the tracking error through the plant model with this.
     pub fn input_grad(&self, p: &[f64], x: &[f64], dx: &mut [f64]) -> f64 {
         let (c, b, w) = self.split(p);
         assert_eq!(x.len(), self.inputs, "input length");
@@ -191,13 +191,13 @@ pub struct Narx {
 }
 
 impl Narx {
-    /// The seed's 3-input model (eq. 3.10): `x = [r(k), r(k-1), y(k-1)]`.
+    /// The dissertation's 3-input model (eq. 3.10): `x = [r(k), r(k-1), y(k-1)]`.
     pub const SEED: Narx = Narx {
         input_lags: 2,
         output_lags: 1,
     };
 
-    /// Our reading of the seed's 7-input variant (§3.2.3, Fig. 3.23), whose inputs the seed
+    /// Our reading of the dissertation's 7-input variant (§3.2.3, Fig. 3.23), whose inputs the dissertation
     /// does not list: `x = [r(k), …, r(k-3), y(k-1), …, y(k-3)]`.
     pub const SEED_7: Narx = Narx {
         input_lags: 4,
@@ -243,7 +243,7 @@ impl Narx {
 /// How past outputs enter the regressors.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Mode {
-    /// Measured past outputs (the seed's choice; a prediction one step ahead).
+    /// Measured past outputs (the dissertation's choice; a prediction one step ahead).
     OneStepAhead,
     /// The model's own past outputs (a simulation from the input only).
     FreeRun,
@@ -303,7 +303,7 @@ pub fn predict(
     }
 }
 
-/// Fitting cost `L = Σ_k e(k)²/2` over the samples after the initial conditions (seed eq.
+/// Fitting cost `L = Σ_k e(k)²/2` over the samples after the initial conditions (dissertation eq.
 /// 3.17, 3.19), `e = y_model - y_meas`. Always finite, for any `p`:
 ///
 /// - one-step-ahead: each `|e|` is saturated at the cap ([`CAP_FACTOR`] × output scale of
@@ -482,7 +482,7 @@ impl Regressors {
     }
 }
 
-/// Max absolute and RMS error of a fit (the metrics of seed Table 3.3).
+/// Max absolute and RMS error of a fit (the metrics of dissertation Table 3.3).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FitErrors {
     pub max_abs: f64,
@@ -506,9 +506,9 @@ pub fn fit_errors(y_meas: &[f64], y_model: &[f64], start: usize) -> FitErrors {
     }
 }
 
-/// The seed's numerical identification plant (eq. 3.18):
+/// The dissertation's numerical identification plant (eq. 3.18):
 /// `y[k] = 0.9802 y[k-1] - 0.3406 r[k] + 0.3306 r[k-1]`, at rest before the record
-/// (`y[-1] = r[-1] = 0`, so `y[0] = -0.3406 r[0]`). The seed drives it with a 20 Hz sine
+/// (`y[-1] = r[-1] = 0`, so `y[0] = -0.3406 r[0]`). The dissertation drives it with a 20 Hz sine
 /// sampled at 1 ms.
 pub fn eq_3_18(r: &[f64]) -> Vec<f64> {
     let mut y = Vec::with_capacity(r.len());
@@ -599,7 +599,7 @@ pub fn param_bounds(
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BpUpdate {
     /// One update per sample with the instantaneous cost `e(k)²/2`, samples in time order, the
-    /// momentum carried across samples and epochs: seed eq. 4.6-4.8 literally.
+    /// momentum carried across samples and epochs: dissertation eq. 4.6-4.8 literally.
     Online,
     /// One update per epoch along the *mean* per-sample gradient (∂L/∂p divided by the number
     /// of samples), so `η` has the same scale as in `Online`.
@@ -620,7 +620,7 @@ pub struct BpConfig {
 }
 
 impl Default for BpConfig {
-    /// Settings that fit the seed's eq. 3.18 data well (see the tests).
+    /// Settings that fit the dissertation's eq. 3.18 data well (see the tests).
     fn default() -> Self {
         BpConfig {
             learning_rate: 0.1,
@@ -650,7 +650,7 @@ pub struct BpResult {
 /// of the best so far restores the best parameters, clears the momentum and halves η.
 const BP_GUARD: f64 = 10.0;
 
-/// Trains by back-propagation with momentum (the seed's BP baseline, update law of eq.
+/// Trains by back-propagation with momentum (the dissertation's BP baseline, update law of eq.
 /// 4.6-4.8) on the one-step-ahead cost, from `p0`. Results are finite for any finite `p0`.
 pub fn bp_train(
     net: &RbfNet,
@@ -731,7 +731,7 @@ mod tests {
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
-    /// The seed's numerical example: a unit 20 Hz sine sampled at 1 ms (the seed gives no
+    /// The dissertation's numerical example: a unit 20 Hz sine sampled at 1 ms (the dissertation gives no
     /// amplitude) driving eq. 3.18.
     fn eq_3_18_data(n: usize) -> (Vec<f64>, Vec<f64>) {
         let r: Vec<f64> = (0..n)
@@ -1054,7 +1054,7 @@ mod tests {
         assert!(pl.iter().zip(&pu).all(|(l, u)| l < u), "{pl:?} {pu:?}");
     }
 
-    /// BP with the default settings on the seed's numerical example (eq. 3.18, 20 Hz sine,
+    /// BP with the default settings on the dissertation's numerical example (eq. 3.18, 20 Hz sine,
     /// 1 ms, 1 s) from [`init_params`]. Run with `--nocapture` for the numbers.
     #[test]
     fn bp_fits_eq_3_18_data() {

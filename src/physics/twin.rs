@@ -1,4 +1,4 @@
-//! The piezo twin: a simulated bimorph actuator like the seed's PZBA-00030 (0.6 mm per
+//! The piezo twin: a simulated bimorph actuator like the dissertation's PZBA-00030 (0.6 mm per
 //! 70 V, first bending mode at 103 Hz, sampled every 1 ms by a 20 nm sensor), built from the
 //! shared physics blocks, with every part switchable so that a test, a diagnosis or a
 //! controller can ask for exactly the physics it needs.
@@ -25,8 +25,8 @@
 //!
 //! Hysteresis acts on the drive voltage (where it physically arises), so the Bouc-Wen
 //! parameters are on the drive scale; [`TwinConfig::command_scale_bouc_wen`] quotes them
-//! on the command scale, which is what a static fit of (u, y) such as the seed's recovers
-//! (d_e = 0.154 mm/V there, against the seed's fitted 0.16).
+//! on the command scale, which is what a static fit of (u, y) such as the dissertation's recovers
+//! (d_e = 0.154 mm/V there, against the dissertation's fitted 0.16).
 //!
 //! Defaults: `d_e = 0.0103 mm/V`, `α = 0.003 mm/V`, `β = 0.03 /V`, `γ = 0.015 /V`, `n = 1`,
 //! chosen so that a 0-70 V drive (0-4.67 V command) at 1 Hz spans 0.6 mm with a loop 12 %

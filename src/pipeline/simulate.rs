@@ -1,4 +1,4 @@
-//! `optbench simulate`: recordings of the piezo twin, by default the seed's experiments
+//! `optbench simulate`: recordings of the piezo twin, by default the dissertation's experiments
 //! (sinusoids at 1, 4, 10, 20 and 28 Hz and the validation signal of Fig. 3.27(b)).
 
 use crate::base::error::{Error, Result};
@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 /// What to simulate.
 #[derive(Debug, Clone)]
 pub struct SimulateRequest {
-    /// One signal (with its duration), or None for the seed's experiments.
+    /// One signal (with its duration), or None for the dissertation's experiments.
     pub signal: Option<(String, Option<f64>)>,
     pub twin: String,
     pub seed: u64,

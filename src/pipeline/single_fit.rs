@@ -1,5 +1,5 @@
 //! `optbench fit`: one fit of a model to a recording with one optimizer, with the numbers
-//! and figures a reader checks first (seed Fig. 3.5/3.6): RMSE and max error on training and
+//! and figures a reader checks first (dissertation Fig. 3.5/3.6): RMSE and max error on training and
 //! validation data in the recording's units, the fitted parameters, measured against model
 //! over time with the error below, the input-output loops and the convergence curve.
 //!

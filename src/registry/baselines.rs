@@ -1,5 +1,5 @@
 //! Parameter tables of the strong baselines (differential evolution, SHADE, CMA-ES,
-//! L-BFGS), kept apart from the seed's optimizers in `registry.rs`.
+//! L-BFGS), kept apart from the dissertation's optimizers in `registry/mod.rs`.
 
 use super::OptimizerKind;
 use crate::base::error::Error;

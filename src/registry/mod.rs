@@ -329,13 +329,13 @@ const BOUC_WEN_PARAMS: &[Spec] = recording_params![
         name: "refit_validation",
         kind: Kind::Choice(&["auto", "always", "never"]),
         default: D::Str("auto"),
-        help: "refit each validation record's own offset (with d0) and initial state on it, the actuator's parameters held fixed: auto = with more than one training or validation record; never = the seed's protocol (from rest with the first training record's d0), as a benchmark's official free-run test",
+        help: "refit each validation record's own offset (with d0) and initial state on it, the actuator's parameters held fixed: auto = with more than one training or validation record; never = the dissertation's protocol (from rest with the first training record's d0), as a benchmark's official free-run test",
     },
     Spec {
         name: "normalize",
         kind: Kind::Bool,
         default: D::Bool(true),
-        help: "fit on input and output divided by their largest |value| (false: the recording's units, as the seed's bounds suggest for V and mm)",
+        help: "fit on input and output divided by their largest |value| (false: the recording's units, as the dissertation's bounds suggest for V and mm)",
     },
     Spec {
         name: "lower",
@@ -408,7 +408,7 @@ pub fn objective_kinds() -> Vec<ObjectiveKind> {
         function_kind!(Ackley, Ackley.describe()),
         ObjectiveKind {
             name: "bouc-wen",
-            help: "fit the seed's Bouc-Wen model (eq. 3.1-3.3: d_e, alpha, beta, gamma, n [, d0]) to a recording by free-run simulation",
+            help: "fit the dissertation's Bouc-Wen model (eq. 3.1-3.3: d_e, alpha, beta, gamma, n [, d0]) to a recording by free-run simulation",
             params: BOUC_WEN_PARAMS,
             build: build_bouc_wen,
         },
@@ -448,7 +448,7 @@ const GA_PARAMS: &[Spec] = &[
         name: "mutation",
         kind: Kind::Choice(&["uniform", "gaussian"]),
         default: D::Str("uniform"),
-        help: "uniform: redraw the gene in its interval (seed eq. 3.5); gaussian: add noise",
+        help: "uniform: redraw the gene in its interval (dissertation eq. 3.5); gaussian: add noise",
     },
     Spec {
         name: "sigma",
@@ -552,15 +552,27 @@ const MSGA_PARAMS: &[Spec] = &[
             max: i64::MAX,
         },
         default: D::Int(40),
-        help: "objects per membrane (5 membranes, seed Fig. 3.3)",
+        help: "objects per membrane (5 membranes, dissertation Fig. 3.3)",
     },
-    probability("pm", 0.1, "mutation probability per gene (seed Table 3.1)"),
-    probability("pc", 0.9, "crossover probability per pair (seed Table 3.1)"),
-    probability("ps", 0.05, "shift probability per object (seed Table 3.1)"),
+    probability(
+        "pm",
+        0.1,
+        "mutation probability per gene (dissertation Table 3.1)",
+    ),
+    probability(
+        "pc",
+        0.9,
+        "crossover probability per pair (dissertation Table 3.1)",
+    ),
+    probability(
+        "ps",
+        0.05,
+        "shift probability per object (dissertation Table 3.1)",
+    ),
     probability(
         "exchange",
         0.3,
-        "share of best objects sent to each neighbour membrane (seed Table 3.1)",
+        "share of best objects sent to each neighbour membrane (dissertation Table 3.1)",
     ),
     Spec {
         name: "threads",
@@ -572,7 +584,7 @@ const MSGA_PARAMS: &[Spec] = &[
         name: "migration_lag",
         kind: Kind::Int { min: 0, max: 1 },
         default: D::Int(0),
-        help: "steps late that migrants are taken in: 0 = the seed's rule (neighbours wait \
+        help: "steps late that migrants are taken in: 0 = the dissertation's rule (neighbours wait \
                for each other every step), 1 = the previous step's (membranes drift; faster \
                on fewer cores than membranes, a different algorithm)",
     },
@@ -637,7 +649,7 @@ const BP_PARAMS: &[Spec] = &[
             max: 0.999,
         },
         default: D::Float(0.9),
-        help: "momentum term mu of dp(k) = -eta grad + mu dp(k-1) (seed eq. 4.6-4.8)",
+        help: "momentum term mu of dp(k) = -eta grad + mu dp(k-1) (dissertation eq. 4.6-4.8)",
     },
 ];
 
@@ -659,7 +671,7 @@ pub fn optimizer_kinds() -> Vec<OptimizerKind> {
         },
         OptimizerKind {
             name: "pso",
-            help: "particle swarm (seed eq. 3.15/3.16), linearly decreasing inertia",
+            help: "particle swarm (dissertation eq. 3.15/3.16), linearly decreasing inertia",
             params: PSO_PARAMS,
             build: build_pso,
         },

@@ -472,7 +472,7 @@ pub fn layout_markdown(
     heading: &str,
     ours: impl Fn(&str) -> Option<String>,
 ) -> String {
-    let reference = t.reference.as_deref().unwrap_or("seed");
+    let reference = t.reference.as_deref().unwrap_or("dissertation");
     let mut header = vec![String::new()];
     header.extend(t.columns.iter().cloned());
     let rows: Vec<Vec<String>> = t
@@ -507,7 +507,7 @@ pub fn paper_table_markdown(t: &crate::pipeline::suite::PaperTable, a: &Analysis
         None => String::new(),
     };
     let heading = format!(
-        "**{}** ({what}ours: median [95% CI] over trials; the seed's single run in brackets)",
+        "**{}** ({what}ours: median [95% CI] over trials; the dissertation's single run in brackets)",
         t.title
     );
     layout_markdown(t, &heading, |cell| {
@@ -516,13 +516,17 @@ pub fn paper_table_markdown(t: &crate::pipeline::suite::PaperTable, a: &Analysis
     })
 }
 
-/// The same table in LaTeX (booktabs): ours above, the seed's number below in grey-free
+/// The same table in LaTeX (booktabs): ours above, the dissertation's number below in grey-free
 /// parentheses, so it prints in black and white.
 pub fn paper_table_latex(t: &crate::pipeline::suite::PaperTable, a: &Analysis) -> String {
     let caption = format!(
         "{} Ours: median over trials; {} in parentheses.",
         latex_escape(&t.title),
-        latex_escape(t.reference.as_deref().unwrap_or("the seed's single run"))
+        latex_escape(
+            t.reference
+                .as_deref()
+                .unwrap_or("the dissertation's single run")
+        )
     );
     let mut body = String::new();
     for row in &t.rows {

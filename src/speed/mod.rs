@@ -134,7 +134,7 @@ pub struct BenchReport {
     /// Evaluator over a bare loop on Griewank-30, minus one (0.03 = 3 % overhead).
     pub harness_overhead: f64,
     /// MSGA on its 5 membrane threads against the same MSGA in one thread (Bouc-Wen fit),
-    /// with the seed's communication rule (`migration_lag = 0`).
+    /// with the dissertation's communication rule (`migration_lag = 0`).
     pub msga_threads_speedup: f64,
     /// The same with migrants taken one step late (`migration_lag = 1`).
     pub msga_threads_speedup_lagged: f64,

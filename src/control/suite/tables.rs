@@ -153,7 +153,7 @@ fn table_cell(
     Some(cell_text(s, t.value.as_deref() == Some("rmse_steady")))
 }
 
-/// A paper-layout table: our median [95 % CI] over trials, the seed's number beside it.
+/// A paper-layout table: our median [95 % CI] over trials, the dissertation's number beside it.
 pub fn table_markdown(t: &PaperTable, suite: &ControlSuite, res: &ControlResults) -> String {
     let what = if t.value.as_deref() == Some("rmse_steady") {
         format!("RMSE [mm] after the first {} s", suite.transient)
@@ -161,16 +161,16 @@ pub fn table_markdown(t: &PaperTable, suite: &ControlSuite, res: &ControlResults
         "RMSE [mm] over the whole run".to_string()
     };
     let heading = format!(
-        "**{}** ({what}; ours: median [95% CI] over {} noise realisations and model fits, failed runs counted as +inf; the seed's single run in brackets)",
+        "**{}** ({what}; ours: median [95% CI] over {} noise realisations and model fits, failed runs counted as +inf; the dissertation's single run in brackets)",
         t.title, suite.trials
     );
     layout_markdown(t, &heading, |c| table_cell(t, suite, res, c))
 }
 
-/// The same table in LaTeX (booktabs): ours, and the seed's number in parentheses.
+/// The same table in LaTeX (booktabs): ours, and the dissertation's number in parentheses.
 pub fn table_latex(t: &PaperTable, suite: &ControlSuite, res: &ControlResults) -> String {
     let caption = format!(
-        "{} Ours: median over {} trials [95\\% CI]; the seed's single run in parentheses.",
+        "{} Ours: median over {} trials [95\\% CI]; the dissertation's single run in parentheses.",
         latex_escape(&t.title),
         suite.trials
     );
@@ -376,7 +376,7 @@ mod tests {
         let cells: Vec<&str> = row.split('|').map(str::trim).collect();
         assert_eq!(
             cells[2..4],
-            ["0.0200 [0.0180, 0.0220] (seed 0.0100)", "not run"],
+            ["0.0200 [0.0180, 0.0220] (dissertation 0.0100)", "not run"],
             "{md}"
         );
         let tex = table_latex(&suite.tables[0], &suite, &res);

@@ -14,7 +14,7 @@
 //!   an amplifier; exact for a staircase command).
 //! - `saturation`: the drive clipped at `±u_ref / c` (`c = 0`: no clipping).
 //! - `asymmetry`: even-order term `v = x + q x²/u_ref` (unequal up/down gains).
-//! - Bouc-Wen (seed eq. 3.1-3.3) written as `D = d_e v + d0 - α g`, `dg/dv = 1 - (β'
+//! - Bouc-Wen (dissertation eq. 3.1-3.3) written as `D = d_e v + d0 - α g`, `dg/dv = 1 - (β'
 //!   sgn(v̇ g) + γ')|g|^n`: `h = α g` exactly when `β = β' α^(1-n)`, `γ = γ' α^(1-n)`
 //!   (α > 0), so `d_e`, `d0` and `α` enter linearly and are solved by least squares for
 //!   every shape (variable projection). The optimizer sees only the shape: `log10 s` (`g`
@@ -598,7 +598,7 @@ impl Structure {
             .collect()
     }
 
-    /// Parameters by name in the seed's form where it applies (`d_e`, `alpha`, `beta`,
+    /// Parameters by name in the dissertation's form where it applies (`d_e`, `alpha`, `beta`,
     /// `gamma`, `n`, `d0` of eq. 3.1-3.3 on the data's own units), then each extension's in
     /// physical units (seconds, Hz, fractions).
     pub fn named_params(&self, theta: &[f64], coef: &[f64]) -> Vec<(String, f64)> {

@@ -92,7 +92,7 @@ fn sine(n: usize, f: f64, dt: f64) -> Vec<f64> {
 
 #[test]
 fn plain_model_equals_the_seed_bouc_wen() {
-    // α-scaled g-form with n ≠ 1 reproduces bouc_wen::simulate of the seed's form.
+    // α-scaled g-form with n ≠ 1 reproduces bouc_wen::simulate of the dissertation's form.
     let dt = 1e-3;
     let u = sine(1500, 3.0, dt);
     let ctx = Context::from_training(&u, dt);
