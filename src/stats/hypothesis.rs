@@ -238,6 +238,139 @@ pub fn friedman(blocks: &[Vec<f64>]) -> Friedman {
     }
 }
 
+/// Result of a two-sided Wilcoxon signed-rank test of paired samples.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Wilcoxon {
+    /// min(W+, W-): the smaller signed-rank sum, as scipy reports it for two sides.
+    pub statistic: f64,
+    pub p_value: f64,
+    /// Pairs that differ (zero differences are left out, Wilcoxon's rule).
+    pub n: usize,
+    /// How the p-value was computed.
+    pub method: PairedMethod,
+}
+
+/// The null distribution a [`Wilcoxon`] p-value comes from, chosen as scipy's `auto` does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum PairedMethod {
+    /// The exact distribution of W+ (no ties, no zero differences, at most 50 pairs).
+    Exact,
+    /// Every one of the 2^n sign flips (ties or zeros, at most 13 pairs).
+    Permutation,
+    /// The normal approximation with the tie correction (no continuity correction).
+    Normal,
+}
+
+/// Two-sided Wilcoxon signed-rank test of `a[i]` against `b[i]`, for trials that are paired
+/// by design (the same noise realisation, the same seed): it tests the differences within
+/// pairs, which the unpaired Mann-Whitney test ignores. Equal to
+/// `scipy.stats.wilcoxon(a, b)` (scipy 1.17: `zero_method='wilcox'`, no continuity
+/// correction, `method='auto'`). A pair in which both values are +inf (both runs failed) is a
+/// zero difference; one failed run makes an infinite difference, ranked largest.
+///
+/// Panics if the samples differ in length or hold NaN.
+pub fn wilcoxon(a: &[f64], b: &[f64]) -> Wilcoxon {
+    assert_eq!(
+        a.len(),
+        b.len(),
+        "the Wilcoxon signed-rank test needs pairs"
+    );
+    let d: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .map(|(&x, &y)| if x == y { 0.0 } else { x - y })
+        .collect();
+    assert!(d.iter().all(|x| !x.is_nan()), "NaN in a paired sample");
+    let zeros = d.iter().filter(|&&x| x == 0.0).count();
+    let nonzero: Vec<f64> = d.iter().copied().filter(|&x| x != 0.0).collect();
+    let n = nonzero.len();
+    if n == 0 {
+        return Wilcoxon {
+            statistic: 0.0,
+            p_value: 1.0,
+            n,
+            method: PairedMethod::Exact,
+        };
+    }
+    let magnitudes: Vec<f64> = nonzero.iter().map(|x| x.abs()).collect();
+    let (ranks, ties) = average_ranks(&magnitudes);
+    let r_plus: f64 = nonzero
+        .iter()
+        .zip(&ranks)
+        .filter(|(x, _)| **x > 0.0)
+        .map(|(_, r)| r)
+        .sum::<f64>()
+        + 0.0; // an empty sum is -0.0
+    let total = (n * (n + 1)) as f64 / 2.0;
+    let statistic = r_plus.min(total - r_plus);
+    let tied = ties.iter().any(|&t| t > 1);
+    let (p_value, method) = if !tied && zeros == 0 && d.len() <= 50 {
+        (exact_signed_rank_p(r_plus as usize, n), PairedMethod::Exact)
+    } else if d.len() <= 13 {
+        (sign_flip_p(&ranks, r_plus), PairedMethod::Permutation)
+    } else {
+        let nf = n as f64;
+        let tie_term: f64 = ties
+            .iter()
+            .map(|&t| {
+                let t = t as f64;
+                t * t * t - t
+            })
+            .sum();
+        let se = ((nf * (nf + 1.0) * (2.0 * nf + 1.0) - tie_term / 2.0) / 24.0).sqrt();
+        let z = (r_plus - total / 2.0) / se;
+        // 2 sf(|z|) = P(chi2_1 > z^2), accurate in the far tail.
+        let p = if z.is_finite() && z != 0.0 {
+            chi2_sf(1.0, z * z)
+        } else {
+            1.0
+        };
+        (p, PairedMethod::Normal)
+    };
+    Wilcoxon {
+        statistic,
+        p_value: p_value.min(1.0),
+        n,
+        method,
+    }
+}
+
+/// Two-sided exact p-value of W+ = `w` with `n` untied nonzero differences: 2 min(P(W+ <=
+/// w), P(W+ >= w)). The counts of subsets of {1..n} by their sum are exact integers in f64
+/// up to n = 50 (2^50 < 2^53).
+fn exact_signed_rank_p(w: usize, n: usize) -> f64 {
+    let max = n * (n + 1) / 2;
+    let mut count = vec![0.0f64; max + 1];
+    count[0] = 1.0;
+    for r in 1..=n {
+        for s in (r..=max).rev() {
+            count[s] += count[s - r];
+        }
+    }
+    let all = 2f64.powi(n as i32);
+    let below: f64 = count[..=w].iter().sum();
+    let above: f64 = count[w..].iter().sum();
+    2.0 * below.min(above) / all
+}
+
+/// Two-sided p-value of W+ over every sign flip of the ranked differences (as scipy's
+/// permutation test with all 2^n flips: both tails counted with a relative tolerance).
+fn sign_flip_p(ranks: &[f64], r_plus: f64) -> f64 {
+    let n = ranks.len();
+    let tol = r_plus.abs() * 1e-14 + 1e-14;
+    let (mut below, mut above) = (0u64, 0u64);
+    for mask in 0u64..(1 << n) {
+        let w: f64 = (0..n)
+            .filter(|i| mask >> i & 1 == 1)
+            .map(|i| ranks[i])
+            .sum();
+        below += u64::from(w <= r_plus + tol);
+        above += u64::from(w >= r_plus - tol);
+    }
+    let all = (1u64 << n) as f64;
+    2.0 * (below.min(above) as f64) / all
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -553,5 +686,86 @@ mod tests {
     #[should_panic(expected = "one value per treatment")]
     fn friedman_refuses_ragged_rows() {
         friedman(&[vec![1.0, 2.0, 3.0], vec![1.0, 2.0]]);
+    }
+
+    /// References: scipy 1.17.1, `r = scipy.stats.wilcoxon(a, b)`, `repr(float(r.statistic))`,
+    /// `repr(float(r.pvalue))`.
+    #[test]
+    fn wilcoxon_matches_scipy() {
+        let n60_a: Vec<f64> = (1..=60).map(f64::from).collect();
+        let n60_b: Vec<f64> = (1..=60)
+            .map(|x| {
+                let s = if x % 2 == 0 { 1.0 } else { -1.0 };
+                f64::from(x) + s * 0.5 * f64::from(x) / 10.0
+            })
+            .collect();
+        type PairedCase = (Vec<f64>, Vec<f64>, f64, f64, PairedMethod);
+        let cases: Vec<PairedCase> = vec![
+            (
+                vec![1.2, 3.4, 2.2, 5.0, 4.1, 0.3, 2.9],
+                vec![1.0, 3.9, 2.0, 4.0, 4.5, 0.1, 2.0],
+                9.0,
+                0.46875,
+                PairedMethod::Exact,
+            ),
+            (
+                vec![0.83, 0.95, 0.71, 0.88, 0.92, 0.79, 0.90, 0.85, 0.77, 0.93],
+                vec![0.80, 0.91, 0.75, 0.83, 0.88, 0.70, 0.86, 0.84, 0.70, 0.90],
+                6.0,
+                0.02734375,
+                PairedMethod::Permutation,
+            ),
+            (
+                vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
+                vec![1.0, 3.0, 2.0, 4.0, 7.0, 5.0],
+                4.0,
+                1.0,
+                PairedMethod::Permutation,
+            ),
+            (
+                n60_a,
+                n60_b,
+                900.0,
+                0.9120730845618369,
+                PairedMethod::Normal,
+            ),
+            (
+                vec![3.0, 1.0, 4.0, 1.5, 5.0, 9.0, 2.6, 5.3, 5.8, 9.7, 9.3, 2.3],
+                vec![2.0, 7.0, 1.0, 8.0, 2.8, 1.8, 2.8, 4.5, 9.0, 4.5, 2.3, 5.3],
+                32.5,
+                0.63525390625,
+                PairedMethod::Permutation,
+            ),
+        ];
+        for (a, b, stat, p, method) in cases {
+            let w = wilcoxon(&a, &b);
+            assert_eq!((w.statistic, w.method), (stat, method), "{a:?}");
+            assert!((w.p_value - p).abs() <= 1e-12 * p, "{} vs {p}", w.p_value);
+            // Swapping the samples mirrors the signs, not the test.
+            let s = wilcoxon(&b, &a);
+            assert_eq!(s.statistic, w.statistic);
+            assert!((s.p_value - w.p_value).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn wilcoxon_sees_pairing_that_mann_whitney_cannot() {
+        // Each pair differs by a small constant shift under a large spread between pairs:
+        // rank sums of the two samples barely differ, the signs within pairs all agree.
+        let a: Vec<f64> = (0..20).map(|k| f64::from(k * k)).collect();
+        let b: Vec<f64> = a
+            .iter()
+            .enumerate()
+            .map(|(k, x)| x + 0.5 + 0.01 * k as f64)
+            .collect();
+        assert!(mann_whitney(&a, &b).p_value > 0.5);
+        let w = wilcoxon(&a, &b);
+        assert_eq!((w.statistic, w.n, w.method), (0.0, 20, PairedMethod::Exact));
+        assert!((w.p_value - 2.0 / 2f64.powi(20)).abs() < 1e-18);
+        // Failed runs: both +inf is no difference, one +inf the largest.
+        let inf = f64::INFINITY;
+        let w = wilcoxon(&[inf, inf, 1.0, 2.0], &[inf, 1.0, 2.0, 4.0]);
+        assert_eq!((w.n, w.method), (3, PairedMethod::Permutation));
+        assert_eq!(wilcoxon(&[1.0, 2.0], &[1.0, 2.0]).p_value, 1.0);
     }
 }

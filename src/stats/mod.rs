@@ -16,7 +16,9 @@ mod rank;
 
 pub use bootstrap::bootstrap_median_ci;
 pub use ert::{Ert, RunToTarget, ert, first_hit};
-pub use hypothesis::{Friedman, MannWhitney, a12, friedman, holm, mann_whitney};
+pub use hypothesis::{
+    Friedman, MannWhitney, PairedMethod, Wilcoxon, a12, friedman, holm, mann_whitney, wilcoxon,
+};
 
 use serde::{Deserialize, Serialize};
 

@@ -10,7 +10,7 @@ use crate::pipeline::suite::PaperTable;
 use crate::render::latex::{booktabs, latex_escape};
 use crate::render::table::{markdown, sig};
 use crate::report::paper::layout_markdown;
-use crate::stats::{a12, bootstrap_median_ci, describe, mann_whitney};
+use crate::stats::{a12, bootstrap_median_ci, describe, mann_whitney, wilcoxon};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 
@@ -231,9 +231,11 @@ pub(super) fn cells_csv(cells: &[CellStats]) -> String {
     s
 }
 
-/// The first controller of each plant against every other, on each reference: ratio of median RMSEs,
-/// two-sided Mann-Whitney p and A12 (probability that the first has the larger RMSE), and
-/// in how many paired trials (same noise realisation) the first is better.
+/// The first controller of each plant against every other, on each reference: ratio of
+/// median RMSEs, the two-sided Wilcoxon signed-rank p over trials (paired: both controllers
+/// of a trial see the same noise realisation), the unpaired Mann-Whitney p beside it, A12
+/// (probability that the first has the larger RMSE), and in how many paired trials the first
+/// is better.
 pub fn comparison_markdown(suite: &ControlSuite, res: &ControlResults) -> String {
     let mut rows = Vec::new();
     for p in &suite.plants {
@@ -243,19 +245,28 @@ pub fn comparison_markdown(suite: &ControlSuite, res: &ControlResults) -> String
             if let Some((&a, others)) = p.controllers.split_first() {
                 for &b in others {
                     let (ca, cb) = (&suite.controllers[a].id, &suite.controllers[b].id);
-                    let get = |c: &str| -> Vec<f64> {
+                    let get = |c: &str| -> Vec<(usize, f64)> {
                         let mut v: Vec<&RunRecord> = res
                             .runs
                             .iter()
                             .filter(|x| x.controller == c && x.plant == p.id && &x.reference == r)
                             .collect();
                         v.sort_by_key(|x| x.trial);
-                        v.iter().map(|x| finite_or_inf(x.metrics.rmse_mm)).collect()
+                        v.iter()
+                            .map(|x| (x.trial, finite_or_inf(x.metrics.rmse_mm)))
+                            .collect()
                     };
-                    let (va, vb) = (get(ca), get(cb));
-                    if va.is_empty() || vb.is_empty() {
+                    let (ta, tb) = (get(ca), get(cb));
+                    if ta.is_empty() || tb.is_empty() {
                         continue;
                     }
+                    let va: Vec<f64> = ta.iter().map(|x| x.1).collect();
+                    let vb: Vec<f64> = tb.iter().map(|x| x.1).collect();
+                    // Pairs: the trials both controllers ran (all of them in a suite's plan).
+                    let (pa, pb): (Vec<f64>, Vec<f64>) = ta
+                        .iter()
+                        .filter_map(|&(k, x)| tb.iter().find(|y| y.0 == k).map(|y| (x, y.1)))
+                        .unzip();
                     let (ma, mb) = (describe(&va).median, describe(&vb).median);
                     let ratio = if ma.is_finite() && mb.is_finite() && ma > 0.0 {
                         sig(mb / ma, 3)
@@ -263,22 +274,28 @@ pub fn comparison_markdown(suite: &ControlSuite, res: &ControlResults) -> String
                         "—".into()
                     };
                     let mw = mann_whitney(&va, &vb);
-                    let wins = va.iter().zip(&vb).filter(|(x, y)| x < y).count();
+                    let paired = if pa.is_empty() {
+                        "—".into()
+                    } else {
+                        sig(wilcoxon(&pa, &pb).p_value, 2)
+                    };
+                    let wins = pa.iter().zip(&pb).filter(|(x, y)| x < y).count();
                     rows.push(vec![
                         p.id.clone(),
                         r.clone(),
                         format!("{ca} vs {cb}"),
                         ratio,
+                        paired,
                         sig(mw.p_value, 2),
                         format!("{:.2}", a12(&va, &vb)),
-                        format!("{wins}/{}", va.len().min(vb.len())),
+                        format!("{wins}/{}", pa.len()),
                     ]);
                 }
             }
         }
     }
     let mut s = String::from(
-        "**Pairwise comparisons** (RMSE over the whole run; ratio = median of the second / median of the first; A12 = P(first's RMSE > second's); wins = paired trials, same noise, where the first is lower)\n\n",
+        "**Pairwise comparisons** (RMSE over the whole run; ratio = median of the second / median of the first; p (Wilcoxon) = two-sided signed-rank test over the paired trials, the test to read: both controllers of a trial see the same noise realisation; p (MW) = unpaired Mann-Whitney, for comparison; A12 = P(first's RMSE > second's); wins = paired trials where the first is lower)\n\n",
     );
     s += &markdown(
         &[
@@ -286,12 +303,13 @@ pub fn comparison_markdown(suite: &ControlSuite, res: &ControlResults) -> String
             "reference",
             "pair",
             "ratio",
+            "p (Wilcoxon)",
             "p (MW)",
             "A12",
             "first wins",
         ],
         &rows,
-        &[false, false, false, true, true, true, true],
+        &[false, false, false, true, true, true, true, true],
     );
     s
 }
@@ -392,5 +410,54 @@ mod tests {
                 .unwrap()
                 .starts_with("PI,twin,sine5,3,0,0.02,")
         );
+    }
+
+    fn run(controller: &str, trial: usize, rmse: f64) -> RunRecord {
+        RunRecord {
+            controller: controller.into(),
+            plant: "twin".into(),
+            reference: "sine5".into(),
+            trial,
+            noise_seed: trial as u64,
+            model_seed: None,
+            metrics: crate::control::run::Metrics {
+                rmse_mm: Some(rmse),
+                rmse_steady_mm: Some(rmse),
+                max_error_steady_mm: Some(rmse),
+                feedback_rms_mm: 0.0,
+                transient_s: 0.2,
+                failure: None,
+                model_free_run_rmse_mm: None,
+            },
+        }
+    }
+
+    #[test]
+    fn comparisons_test_the_pairs_that_share_a_noise_realisation() {
+        let text = SMALL.replace("trials = 3", "trials = 8");
+        let suite = ControlSuite::parse(&text, Path::new("c.toml")).unwrap();
+        // Trials spread widely (the noise), PI a little better in every one: a paired test
+        // sees it, an unpaired one does not. Stored out of trial order on purpose.
+        let mut runs = Vec::new();
+        for k in (0..8).rev() {
+            let level = 0.01 * (1 + k * k) as f64;
+            runs.push(run("P", k, level + 0.001 * (k + 1) as f64));
+            runs.push(run("PI", k, level));
+        }
+        let res = ControlResults {
+            runs,
+            models: Vec::new(),
+            cells: Vec::new(),
+        };
+        let md = comparison_markdown(&suite, &res);
+        let row = md.lines().find(|l| l.contains("P vs PI")).unwrap();
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        // plant, reference, pair, ratio, p (Wilcoxon), p (MW), A12, wins
+        assert_eq!(cells[1..4], ["twin", "sine5", "P vs PI"], "{md}");
+        // Exact: all 8 signs agree, 2 / 2^8.
+        assert_eq!(cells[5], "0.0078", "{md}");
+        let mw: f64 = cells[6].parse().unwrap();
+        assert!(mw > 0.5, "{md}");
+        assert_eq!(cells[8], "0/8", "the first (P) is never lower: {md}");
     }
 }
