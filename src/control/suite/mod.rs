@@ -176,7 +176,6 @@ impl ControlSuite {
     /// Validates suite text; errors name the file, line and key.
     pub fn parse(text: &str, path: &Path) -> Result<ControlSuite> {
         let st = SuiteText::new(path, text);
-        let at = |offset: usize, msg: String| st.at(offset, msg);
         let raw: RawSuite = st.parse()?;
         let Header { name, seed, trials } = st.header(&raw.name, &raw.seed, &raw.trials)?;
         let control_at = raw.control.span().start;
@@ -190,10 +189,7 @@ impl ControlSuite {
             guard.y_limit = y;
         }
         if !(guard.u_limit > 0.0 && guard.y_limit > 0.0) {
-            return Err(at(
-                control_at,
-                "[control] `u_limit` and `y_limit` must be > 0".into(),
-            ));
+            return Err(st.at(control_at, "[control] `u_limit` and `y_limit` must be > 0"));
         }
 
         let mut references: Vec<Reference> = Vec::new();
@@ -209,9 +205,9 @@ impl ControlSuite {
                         r
                     }),
             }
-            .map_err(|e| at(line_at, format!("[control] references: {e}")))?;
+            .map_err(|e| st.at(line_at, format!("[control] references: {e}")))?;
             if !text::valid_name(&reference.name) {
-                return Err(at(
+                return Err(st.at(
                     line_at,
                     format!(
                         "reference `{}`: give it an `id` (letters, digits, '-', '_', '.'): {{ id = \"...\", spec = \"...\" }}",
@@ -220,13 +216,13 @@ impl ControlSuite {
                 ));
             }
             if references.iter().any(|x| x.name == reference.name) {
-                return Err(at(
+                return Err(st.at(
                     line_at,
                     format!("reference `{}` is listed twice", reference.name),
                 ));
             }
             if !(transient >= 0.0 && transient < reference.duration) {
-                return Err(at(
+                return Err(st.at(
                     control_at,
                     format!(
                         "[control] `transient` = {transient}: must be in [0, {}) (reference `{}`)",
@@ -237,7 +233,7 @@ impl ControlSuite {
             references.push(reference);
         }
         if references.is_empty() {
-            return Err(at(control_at, "[control] `references` is empty".into()));
+            return Err(st.at(control_at, "[control] `references` is empty"));
         }
 
         if raw.controllers.is_empty() {

@@ -29,7 +29,7 @@
 //! functions), so `targets` and `stop_at` mean the same thing for both.
 
 use crate::base::TrialSeed;
-use crate::base::error::{Error, Result};
+use crate::base::error::Result;
 use crate::base::params::Params;
 use crate::harness::OptimizerConfig;
 use crate::objective::Objective;
@@ -136,26 +136,25 @@ impl Suite {
     /// Validates suite text; `path` is used in messages and provenance.
     pub fn parse(text: &str, path: &Path) -> Result<Suite> {
         let st = SuiteText::new(path, text);
-        let at = |offset: usize, msg: String| st.at(offset, msg);
         let raw: RawSuite = st.parse()?;
         let Header { name, seed, trials } = st.header(&raw.name, &raw.seed, &raw.trials)?;
-        let budget =
-            positive_budget(*raw.budget.get_ref()).map_err(|m| at(raw.budget.span().start, m))?;
+        let budget = positive_budget(*raw.budget.get_ref())
+            .map_err(|m| st.at(raw.budget.span().start, m))?;
         let targets = match &raw.targets {
-            Some(t) => check_targets(t.get_ref()).map_err(|m| at(t.span().start, m))?,
+            Some(t) => check_targets(t.get_ref()).map_err(|m| st.at(t.span().start, m))?,
             None => Vec::new(),
         };
         let stop_at = match &raw.stop_at {
             Some(s) => {
-                Some(check_level(*s.get_ref(), "stop_at").map_err(|m| at(s.span().start, m))?)
+                Some(check_level(*s.get_ref(), "stop_at").map_err(|m| st.at(s.span().start, m))?)
             }
             None => None,
         };
         if raw.objectives.is_empty() {
-            return Err(Error::at(path, 1, "the suite has no [[objective]]"));
+            return Err(st.on(1, "the suite has no [[objective]]"));
         }
         if raw.optimizers.is_empty() {
-            return Err(Error::at(path, 1, "the suite has no [[optimizer]]"));
+            return Err(st.on(1, "the suite has no [[optimizer]]"));
         }
 
         let kinds = objective_kinds();
@@ -178,15 +177,15 @@ impl Suite {
             let id = id.unwrap_or_else(|| format!("{}-{}d", kind.name, objective.dim()));
             st.check_id(&id, &mut ids, line, "objective")?;
             let budget = match own_budget {
-                Some((b, l)) => positive_budget(b).map_err(|m| Error::at(path, l, m))?,
+                Some((b, l)) => positive_budget(b).map_err(|m| st.on(l, m))?,
                 None => budget,
             };
             let targets = match own_targets {
-                Some((t, l)) => check_targets(&t).map_err(|m| Error::at(path, l, m))?,
+                Some((t, l)) => check_targets(&t).map_err(|m| st.on(l, m))?,
                 None => targets.clone(),
             };
             let stop_at = match own_stop {
-                Some((s, l)) => Some(check_level(s, "stop_at").map_err(|m| Error::at(path, l, m))?),
+                Some((s, l)) => Some(check_level(s, "stop_at").map_err(|m| st.on(l, m))?),
                 None => stop_at,
             };
             objectives.push(ObjectiveEntry {
@@ -223,8 +222,7 @@ impl Suite {
             let mut config = (kind.build)(&params)?;
             if let Some((share, line)) = polish {
                 if !(share > 0.0 && share < 1.0) {
-                    return Err(Error::at(
-                        path,
+                    return Err(st.on(
                         line,
                         format!(
                             "optimizer `{id}`: `polish` = {share}: expected a budget share in (0, 1)"
@@ -233,8 +231,7 @@ impl Suite {
                 }
                 let local =
                     crate::optimizer::polish_method(polish_with.as_deref()).map_err(|m| {
-                        Error::at(
-                            path,
+                        st.on(
                             polish_line.unwrap_or(line),
                             format!("optimizer `{id}`: {m}"),
                         )
@@ -245,8 +242,7 @@ impl Suite {
                     local,
                 });
             } else if let Some(l) = polish_line {
-                return Err(Error::at(
-                    path,
+                return Err(st.on(
                     l,
                     format!(
                         "optimizer `{id}`: `polish_with` needs `polish` = a budget share in (0, 1)"
@@ -268,8 +264,7 @@ impl Suite {
                     .iter()
                     .map(|n| {
                         optimizers.iter().position(|o| &o.id == n).ok_or_else(|| {
-                            Error::at(
-                                path,
+                            st.on(
                                 line,
                                 format!(
                                     "objective `{}`: `optimizers` names `{n}`, which is not an optimizer id of this suite ({})",
@@ -306,7 +301,7 @@ impl Suite {
         for t in &raw.tables {
             let line = st.line(t.span().start);
             check_table(t.get_ref(), &objectives, &optimizers, &mut metric_names)
-                .map_err(|m| Error::at(path, line, format!("table `{}`: {m}", t.get_ref().id)))?;
+                .map_err(|m| st.on(line, format!("table `{}`: {m}", t.get_ref().id)))?;
             tables.push(t.get_ref().clone());
         }
 
