@@ -1,0 +1,332 @@
+#!/usr/bin/env python3
+"""Generates every number, table, output block and figure of README.md and docs/ from runs.
+
+    python3 scripts/docs_gen.py --write [--only MODULE ...]   # full size: run, store, rewrite
+    python3 scripts/docs_gen.py --check                        # what CI runs (small size)
+    python3 scripts/docs_gen.py --check --full [--only ...]    # full size, by hand: rerun, compare
+    python3 scripts/docs_gen.py --list                         # modules, fragments, where they sit
+
+Generated text sits between marker comments, as a block
+
+    <!-- gen:ID -->
+    ...
+    <!-- /gen:ID -->
+
+or inline in a sentence (`<!-- gen:ID -->0.0078<!-- /gen:ID -->`). Nobody edits between
+markers: `--write` replaces the text.
+
+Each module in scripts/docsgen/ (one per chapter or experiment) has
+
+    FRAGMENTS = [ids]             # what it writes
+    collect(ctx) -> data          # runs the tool (at ctx.small or full size) and extracts
+                                  # what the docs quote: numbers, tables, stdout, figures
+    render(data) -> {id: text}    # Markdown from data alone: no runs, no files
+    VOLATILE = [regex, ...]       # optional: parts of data that differ run to run (wall time)
+
+`--write` stores each module's data in docs/generated/MODULE.json beside the docs, so the
+check needs no full-size run:
+
+  1. render(stored data) must equal the text between the markers, byte for byte (a number
+     typed by hand between markers, or data edited by hand without the docs, fails);
+  2. every module runs at small size (ctx.small: few trials, small budgets) and its data
+     must have the stored data's shape (same keys and types), and render it without error:
+     the commands, files and fields the docs rely on still exist;
+  3. every marker in the docs has a module, and every fragment a marker.
+
+`--check --full` reruns at full size and compares the fresh data with the stored data
+exactly (outside VOLATILE): runs are seeded, so a difference is a changed result.
+Figures are copied into docs/figures by `--write`; the data holds their SHA-256, so a full
+check also catches a changed figure.
+
+Needs the release binary (`cargo build --release`); the data folder from $OPTBENCH_DATA
+(default ../shared/data): modules that need it and find it absent say so and are skipped.
+Standard library only (Python 3.11+).
+"""
+
+import argparse
+import hashlib
+import importlib
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "scripts"))
+STORE = ROOT / "docs" / "generated"
+FIGURES = ROOT / "docs" / "figures"
+MARKER_RE = re.compile(r"<!-- gen:([A-Za-z0-9_.-]+) -->(.*?)<!-- /gen:\1 -->", re.S)
+OPEN_RE = re.compile(r"<!-- /?gen:([A-Za-z0-9_.-]+) -->")
+
+
+class Skip(Exception):
+    """A module cannot run here (e.g. the data folder is absent)."""
+
+
+class Ctx:
+    """What a module's collect() gets: the binary, the data folder, scratch space, the size."""
+
+    def __init__(self, small, scratch, write_figures):
+        self.small = small
+        self.root = ROOT
+        self.bin = ROOT / "target" / "release" / "optbench"
+        self.data = Path(os.environ.get("OPTBENCH_DATA", ROOT.parent / "shared" / "data"))
+        self.scratch = Path(scratch)
+        self.write_figures = write_figures
+        self._runs = {}
+
+    def need_data(self, *parts):
+        """The data path, or Skip when the data folder (or that file) is absent."""
+        p = self.data.joinpath(*parts)
+        if not p.exists():
+            raise Skip(f"{p} is absent (set OPTBENCH_DATA to the data folder)")
+        return p
+
+    def optbench(self, *args, check=True, env=None):
+        """Runs the release binary from the repository root; text stdout/stderr."""
+        if not self.bin.exists():
+            sys.exit(f"error: {self.bin} is missing: run `cargo build --release` first")
+        e = dict(os.environ, OPTBENCH_DATA=str(self.data), **(env or {}))
+        r = subprocess.run([str(self.bin), *map(str, args)], cwd=ROOT, env=e,
+                           capture_output=True, text=True)
+        if check and r.returncode != 0:
+            raise RuntimeError(f"optbench {' '.join(map(str, args))} exited {r.returncode}:\n"
+                               f"{r.stderr[-3000:]}")
+        return r
+
+    def run_suite(self, suite, small_args=(), extra=()):
+        """Runs a suite once per generation (shared by modules) and returns its folder.
+
+        `small_args` (e.g. --trials 3 --budget 2000) apply only at small size."""
+        args = tuple(map(str, extra)) + (tuple(map(str, small_args)) if self.small else ())
+        key = (str(suite), args)
+        if key not in self._runs:
+            out = self.scratch / f"run{len(self._runs)}-{Path(suite).stem}"
+            t0 = time.time()
+            self.optbench("run", suite, "--out", out, "-q", *args)
+            print(f"    ran {suite} {' '.join(args)} in {time.time() - t0:.0f} s", file=sys.stderr)
+            self._runs[key] = out
+        return self._runs[key]
+
+    def figure(self, src, name):
+        """Publishes a figure as docs/figures/NAME (when writing); returns its SHA-256."""
+        src = Path(src)
+        if not src.exists():
+            raise RuntimeError(f"figure {src} was not written")
+        if self.write_figures:
+            FIGURES.mkdir(exist_ok=True)
+            shutil.copyfile(src, FIGURES / name)
+        return hashlib.sha256(src.read_bytes()).hexdigest()
+
+
+def modules():
+    names = sorted(p.stem for p in (ROOT / "scripts" / "docsgen").glob("*.py")
+                   if not p.stem.startswith("_"))
+    return {n: importlib.import_module(f"docsgen.{n}") for n in names}
+
+
+def doc_files():
+    return [ROOT / "README.md"] + sorted((ROOT / "docs").rglob("*.md"))
+
+
+def markers():
+    """{id: (path, text between markers)}; errors for duplicates and unpaired markers."""
+    found, errors = {}, []
+    for f in doc_files():
+        text = f.read_text()
+        for m in MARKER_RE.finditer(text):
+            if m.group(1) in found:
+                errors.append(f"{f.relative_to(ROOT)}: gen:{m.group(1)} appears twice")
+            found[m.group(1)] = (f, m.group(2))
+        paired = {m.group(1) for m in MARKER_RE.finditer(text)}
+        for m in OPEN_RE.finditer(text):
+            if m.group(1) not in paired:
+                errors.append(f"{f.relative_to(ROOT)}: gen:{m.group(1)} has no closing "
+                              "marker (or it is nested)")
+    return found, errors
+
+
+def place(old, new):
+    """New text between markers, in the block or inline form the old text had."""
+    if old.startswith("\n"):
+        return "\n" + new.strip("\n") + "\n"
+    if "\n" in new.strip("\n"):
+        raise ValueError("a multi-line fragment needs block markers (on their own lines)")
+    return new.strip("\n")
+
+
+def write_docs(rendered):
+    by_file = {}
+    found, errors = markers()
+    if errors:
+        sys.exit("\n".join(errors))
+    for fid, text in rendered.items():
+        if fid not in found:
+            continue
+        by_file.setdefault(found[fid][0], {})[fid] = text
+    for f, frags in by_file.items():
+        src = f.read_text()
+
+        def sub(m, frags=frags):
+            if m.group(1) not in frags:
+                return m.group(0)
+            return f"<!-- gen:{m.group(1)} -->{place(m.group(2), frags[m.group(1)])}<!-- /gen:{m.group(1)} -->"
+
+        new = MARKER_RE.sub(sub, src)
+        if new != src:
+            tmp = f.with_suffix(".md.tmp")
+            tmp.write_text(new)
+            tmp.replace(f)
+            print(f"  wrote {f.relative_to(ROOT)}")
+
+
+def shape(x):
+    """The structure of data, without its values: keys, types, element shapes."""
+    if isinstance(x, dict):
+        return {k: shape(v) for k, v in sorted(x.items())}
+    if isinstance(x, list):
+        return ["list", shape(x[0]) if x else None]
+    if isinstance(x, bool):
+        return "bool"
+    if isinstance(x, (int, float)) or x is None:
+        return "number"   # a statistic may be null (no finite value) at small size
+    return type(x).__name__
+
+
+def shape_diff(a, b, path="data"):
+    """First place where shapes a (stored) and b (fresh) differ, or None."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b)):
+            if k not in b:
+                return f"{path}.{k}: in the stored data, not produced now"
+            if k not in a:
+                return f"{path}.{k}: produced now, not in the stored data"
+            d = shape_diff(a[k], b[k], f"{path}.{k}")
+            if d:
+                return d
+        return None
+    if isinstance(a, list) and isinstance(b, list):
+        if a[1] is None or b[1] is None:
+            return None
+        return shape_diff(a[1], b[1], f"{path}[]")
+    return None if a == b else f"{path}: stored {a}, now {b}"
+
+
+def masked(data, volatile):
+    s = json.dumps(data, indent=1, sort_keys=True)
+    for rx in volatile:
+        s = re.sub(rx, "<volatile>", s)
+    return s
+
+
+def store_path(name):
+    return STORE / f"{name}.json"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    g = ap.add_mutually_exclusive_group(required=True)
+    g.add_argument("--write", action="store_true", help="run at full size, store, rewrite docs")
+    g.add_argument("--check", action="store_true", help="compare docs with generation")
+    g.add_argument("--list", action="store_true")
+    ap.add_argument("--full", action="store_true", help="with --check: rerun at full size")
+    ap.add_argument("--only", nargs="+", default=None, help="modules to run")
+    ap.add_argument("--keep", default=None, help="scratch folder to keep (default: a temp dir)")
+    a = ap.parse_args()
+
+    mods = modules()
+    if a.only:
+        unknown = [n for n in a.only if n not in mods]
+        if unknown:
+            sys.exit(f"error: unknown module(s) {unknown}; known: {sorted(mods)}")
+    selected = {n: m for n, m in mods.items() if not a.only or n in a.only}
+    found, errors = markers()
+    owner = {}
+    for n, m in mods.items():
+        for fid in m.FRAGMENTS:
+            if fid in owner:
+                errors.append(f"fragment {fid} is declared by {owner[fid]} and {n}")
+            owner[fid] = n
+    errors += [f"{found[f][0].relative_to(ROOT)}: gen:{f} has no module" for f in found
+               if f not in owner]
+    errors += [f"fragment {f} of {owner[f]} has no marker in README.md or docs/"
+               for f in owner if f not in found]
+
+    if a.list:
+        for n, m in mods.items():
+            print(n)
+            for fid in m.FRAGMENTS:
+                where = found[fid][0].relative_to(ROOT) if fid in found else "(no marker)"
+                print(f"  {fid:32} {where}")
+        for e in errors:
+            print("error:", e)
+        sys.exit(1 if errors else 0)
+
+    scratch = Path(a.keep) if a.keep else Path(tempfile.mkdtemp(prefix="docs-gen-"))
+    scratch.mkdir(parents=True, exist_ok=True)
+    small = a.check and not a.full
+    ctx = Ctx(small=small, scratch=scratch, write_figures=a.write)
+    skipped = []
+    for n, m in selected.items():
+        t0 = time.time()
+        print(f"{n}: {'small' if small else 'full'} size", file=sys.stderr)
+        stored = json.loads(store_path(n).read_text()) if store_path(n).exists() else None
+        if a.check and stored is None:
+            errors.append(f"{n}: docs/generated/{n}.json is missing: run --write --only {n}")
+            continue
+        if a.check:
+            # 1. the docs are what the stored data renders.
+            for fid, text in m.render(stored).items():
+                if fid in found and found[fid][1] != place(found[fid][1], text):
+                    errors.append(f"{found[fid][0].relative_to(ROOT)}: gen:{fid} differs from "
+                                  f"what docs/generated/{n}.json renders (edited by hand? run "
+                                  f"`python3 scripts/docs_gen.py --write --only {n}`)")
+        try:
+            data = m.collect(ctx)
+        except Skip as s:
+            print(f"  skipped: {s}", file=sys.stderr)
+            skipped.append(n)
+            continue
+        data = json.loads(json.dumps(data))   # what would be stored: JSON types only
+        rendered = m.render(data)
+        missing = set(m.FRAGMENTS) - set(rendered)
+        if missing:
+            errors.append(f"{n}: render() did not produce {sorted(missing)}")
+        if a.write:
+            STORE.mkdir(exist_ok=True)
+            tmp = store_path(n).with_suffix(".tmp")
+            tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+            tmp.replace(store_path(n))
+            write_docs(rendered)
+        elif small:
+            d = shape_diff(shape(stored), shape(data))
+            if d:
+                errors.append(f"{n}: the small run's data differ in shape from the stored: {d}")
+        else:
+            vol = getattr(m, "VOLATILE", [])
+            if masked(stored, vol) != masked(data, vol):
+                old = masked(stored, vol).splitlines()
+                new = masked(data, vol).splitlines()
+                diff = [f"    stored {o.strip()}\n    now    {w.strip()}"
+                        for o, w in zip(old, new) if o != w][:8]
+                errors.append(f"{n}: full-size data differ from docs/generated/{n}.json:\n"
+                              + "\n".join(diff))
+        print(f"  {n}: {time.time() - t0:.0f} s", file=sys.stderr)
+    if not a.keep:
+        shutil.rmtree(scratch, ignore_errors=True)
+    for e in errors:
+        print("error:", e)
+    if skipped:
+        print(f"skipped (data absent): {', '.join(skipped)}")
+    print("docs generation:", "FAILED" if errors else "ok",
+          f"({len(selected) - len(skipped)} module(s) {'written' if a.write else 'checked'})")
+    sys.exit(1 if errors else 0)
+
+
+if __name__ == "__main__":
+    main()
