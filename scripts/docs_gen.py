@@ -218,7 +218,7 @@ def shape_diff(a, b, path="data"):
 
 
 def masked(data, volatile):
-    s = json.dumps(data, indent=1, sort_keys=True)
+    s = json.dumps(data, indent=1)
     for rx in volatile:
         s = re.sub(rx, "<volatile>", s)
     return s
@@ -300,7 +300,7 @@ def main():
         if a.write:
             STORE.mkdir(exist_ok=True)
             tmp = store_path(n).with_suffix(".tmp")
-            tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+            tmp.write_text(json.dumps(data, indent=1) + "\n")
             tmp.replace(store_path(n))
             write_docs(rendered)
         elif small:
