@@ -4,6 +4,7 @@
     python3 scripts/docs_gen.py --write [--only MODULE ...]   # full size: run, store, rewrite
     python3 scripts/docs_gen.py --check                        # what CI runs (small size)
     python3 scripts/docs_gen.py --check --full [--only ...]    # full size, by hand: rerun, compare
+    python3 scripts/docs_gen.py --render [--only MODULE ...]  # rewrite from the stored data only
     python3 scripts/docs_gen.py --list                         # modules, fragments, where they sit
 
 Generated text sits between marker comments, as a block
@@ -233,6 +234,9 @@ def main():
     g = ap.add_mutually_exclusive_group(required=True)
     g.add_argument("--write", action="store_true", help="run at full size, store, rewrite docs")
     g.add_argument("--check", action="store_true", help="compare docs with generation")
+    g.add_argument("--render", action="store_true",
+                   help="rewrite the docs from the stored data, without running anything "
+                        "(after a change to a module's render())")
     g.add_argument("--list", action="store_true")
     ap.add_argument("--full", action="store_true", help="with --check: rerun at full size")
     ap.add_argument("--only", nargs="+", default=None, help="modules to run")
@@ -263,6 +267,16 @@ def main():
             for fid in m.FRAGMENTS:
                 where = found[fid][0].relative_to(ROOT) if fid in found else "(no marker)"
                 print(f"  {fid:32} {where}")
+        for e in errors:
+            print("error:", e)
+        sys.exit(1 if errors else 0)
+
+    if a.render:
+        for n, m in selected.items():
+            if not store_path(n).exists():
+                errors.append(f"{n}: docs/generated/{n}.json is missing: run --write --only {n}")
+                continue
+            write_docs(m.render(json.loads(store_path(n).read_text())))
         for e in errors:
             print("error:", e)
         sys.exit(1 if errors else 0)
