@@ -72,7 +72,7 @@ class Skip(Exception):
 class Ctx:
     """What a module's collect() gets: the binary, the data folder, scratch space, the size."""
 
-    def __init__(self, small, scratch, write_figures):
+    def __init__(self, small, scratch, write_figures, reuse=None):
         self.small = small
         self.root = ROOT
         self.bin = ROOT / "target" / "release" / "optbench"
@@ -80,6 +80,7 @@ class Ctx:
         self.scratch = Path(scratch)
         self.write_figures = write_figures
         self._runs = {}
+        self.reuse = reuse or {}
 
     def need_data(self, *parts):
         """The data path, or Skip when the data folder (or that file) is absent."""
@@ -106,6 +107,12 @@ class Ctx:
         `small_args` (e.g. --trials 3 --budget 2000) apply only at small size."""
         args = tuple(map(str, extra)) + (tuple(map(str, small_args)) if self.small else ())
         key = (str(suite), args)
+        if key not in self._runs and str(suite) in self.reuse and not self.small and not extra:
+            out = Path(self.reuse[str(suite)])
+            # The stored traces are reused; the report is rebuilt by this binary.
+            self.optbench("report", out)
+            print(f"    reused {out} for {suite} (report rebuilt)", file=sys.stderr)
+            self._runs[key] = out
         if key not in self._runs:
             out = self.scratch / f"run{len(self._runs)}-{Path(suite).stem}"
             t0 = time.time()
@@ -240,6 +247,9 @@ def main():
     g.add_argument("--list", action="store_true")
     ap.add_argument("--full", action="store_true", help="with --check: rerun at full size")
     ap.add_argument("--only", nargs="+", default=None, help="modules to run")
+    ap.add_argument("--reuse", nargs="+", default=[], metavar="SUITE=DIR",
+                    help="with --write: take a full-size run of SUITE from DIR (e.g. an "
+                         "earlier `optbench run` of the same build) instead of running it")
     ap.add_argument("--keep", default=None, help="scratch folder to keep (default: a temp dir)")
     a = ap.parse_args()
 
@@ -284,7 +294,8 @@ def main():
     scratch = Path(a.keep) if a.keep else Path(tempfile.mkdtemp(prefix="docs-gen-"))
     scratch.mkdir(parents=True, exist_ok=True)
     small = a.check and not a.full
-    ctx = Ctx(small=small, scratch=scratch, write_figures=a.write)
+    reuse = dict(r.split("=", 1) for r in a.reuse)
+    ctx = Ctx(small=small, scratch=scratch, write_figures=a.write, reuse=reuse)
     skipped = []
     for n, m in selected.items():
         t0 = time.time()

@@ -507,8 +507,11 @@ pub fn paper_table_markdown(t: &crate::pipeline::suite::PaperTable, a: &Analysis
         None => String::new(),
     };
     let heading = format!(
-        "**{}** ({what}ours: median [95% CI] over trials; the dissertation's single run in brackets)",
-        t.title
+        "**{}** ({what}ours: median [95% CI] over trials; {} in brackets)",
+        t.title,
+        t.reference
+            .as_deref()
+            .map_or("the dissertation's single run".to_string(), |r| format!("the {r} value"))
     );
     layout_markdown(t, &heading, |cell| {
         paper_cell(a, cell, t.value.as_ref())
