@@ -249,6 +249,8 @@ impl Objective for Function {
         self.optimum
     }
 
+    /// The closed-form gradient, then the value: about two value passes of work, charged
+    /// `1 + d` all the same.
     fn value_and_gradient(&self, x: &[f64], grad: &mut [f64]) -> Option<f64> {
         Some(self.kind.value_and_gradient(x, grad))
     }

@@ -13,7 +13,10 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// point outside the box, and the threads that evaluated.
 pub struct Probe {
     inner: Function,
+    /// Values computed (alone or with a gradient).
     pub calls: AtomicU64,
+    /// Values computed with their gradient.
+    pub gradients: AtomicU64,
     pub out_of_bounds: AtomicU64,
     pub threads: Mutex<BTreeSet<String>>,
 }
@@ -23,6 +26,7 @@ impl Probe {
         Probe {
             inner: Function::standard(kind, dim).unwrap(),
             calls: AtomicU64::new(0),
+            gradients: AtomicU64::new(0),
             out_of_bounds: AtomicU64::new(0),
             threads: Mutex::new(BTreeSet::new()),
         }
@@ -30,6 +34,12 @@ impl Probe {
 
     pub fn calls(&self) -> u64 {
         self.calls.load(Ordering::SeqCst)
+    }
+
+    /// The real calls in evaluations: one per value, and `d` more per gradient (the harness
+    /// charges a value with its gradient `1 + d`).
+    pub fn cost(&self) -> u64 {
+        self.calls() + self.dim() as u64 * self.gradients.load(Ordering::SeqCst)
     }
 }
 
@@ -56,6 +66,7 @@ impl Objective for Probe {
         self.inner.optimum()
     }
     fn value_and_gradient(&self, x: &[f64], grad: &mut [f64]) -> Option<f64> {
+        self.gradients.fetch_add(1, Ordering::SeqCst);
         let f = self.evaluate(x);
         self.inner.value_and_gradient(x, grad)?;
         Some(f)
