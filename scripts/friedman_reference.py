@@ -1,69 +1,35 @@
 #!/usr/bin/env python3
-"""Reference p-values of Friedman's test from its permutation distribution, for the unit
-test `friedman_permutation_p_matches_scipy` in src/stats/hypothesis.rs.
+"""Reference p-values of Friedman's test from its permutation distribution, written into
+tests/fixtures/friedman_reference.json, which tests/friedman.rs checks optbench against.
 
-    python3 scripts/friedman_reference.py      # numpy and scipy (tested with scipy 1.17.1)
+    python3 scripts/friedman_reference.py            # print the references
+    python3 scripts/friedman_reference.py --write    # and store them in the fixture
 
-For each case (rows = blocks/objectives, columns = treatments/optimizers) it prints scipy's
-statistic and chi-square p-value, then the permutation p-value computed independently of
-optbench:
+Needs numpy and scipy (written with scipy 1.17.1, numpy 2.4.6). The fixture holds the
+cases (rows = blocks/objectives, columns = treatments/optimizers); for each this script adds
+scipy's statistic and chi-square p-value and the permutation p-value, computed
+independently of optbench:
   - exact: scipy.stats.permutation_test with permutation_type='samples' (each block's values
-    arranged among the treatments every way, (k!)^n arrangements, n_resamples=inf) and the
-    tie-corrected Friedman statistic, alternative='greater';
-  - for the 6-block case, brute force in numpy over every arrangement of blocks 2..6 (block 1
-    held: relabelling the treatments does not change the statistic), 24^5 = 8 million;
-  - for the 8-treatment case, (k!)^n is 6.5e13: Monte Carlo with 10^6 resamples from numpy's
-    default_rng(2024), with its standard error.
+    arranged among the treatments every way, (k!)^n arrangements, n_resamples=inf) on the
+    tie-corrected Friedman statistic, alternative='greater', where (k!)^n <= 10^6; checked
+    against a brute force in numpy over every arrangement of blocks 2..n (block 1 held:
+    relabelling the treatments does not change the statistic), which alone serves up to
+    24^5 = 8 million arrangements;
+  - beyond that (eight treatments: (8!)^3 = 6.5e13): Monte Carlo with 10^6 resamples from
+    numpy's default_rng(2024), with its standard error.
 """
 
+import argparse
 import itertools
+import json
+import math
+import re
+from pathlib import Path
 
 import numpy as np
 from scipy import stats
 
-CASES = {
-    # The tied blocks of friedman_matches_scipy (its first four rows; then all six).
-    "ties4": [
-        [0.0, 0.0, 1.5, 2.0],
-        [3.2, 1.1, 1.1, 4.0],
-        [0.5, 0.7, 0.6, 0.9],
-        [2.0, 2.0, 2.0, 1.0],
-    ],
-    "ties6": [
-        [0.0, 0.0, 1.5, 2.0],
-        [3.2, 1.1, 1.1, 4.0],
-        [0.5, 0.7, 0.6, 0.9],
-        [2.0, 2.0, 2.0, 1.0],
-        [1e-8, 3e-3, 2e-1, 2e-1],
-        [7.0, 5.0, 6.0, 8.0],
-    ],
-    # The untied blocks of friedman_matches_scipy.
-    "plain5": [
-        [1.0, 2.0, 3.0],
-        [1.0, 3.0, 2.0],
-        [2.0, 1.0, 3.0],
-        [1.0, 2.0, 3.0],
-        [1.0, 2.0, 3.0],
-    ],
-    # suites/functions.toml, seed 2013: median errors of GA, PSO, MSGA, RS (docs chapter 4).
-    "functions4": [
-        [0.010427039514165293, 5.9396931817445875e-15, 0.006697469531842526, 0.11600807050965112],
-        [1.8321644450577423, 0.0, 0.0, 1.0583818344894667],
-        [12.166615937713335, 1.0656346520344786, 1.372526965137185, 351.3806124257218],
-        [6288.2698758943025, 3553.26965013067, 1123.7156135250852, 8210.704183082407],
-    ],
-    # The same with DE, SHADE, CMA-ES, MSGA-LBFGS: eight treatments.
-    "functions8": [
-        [0.010427039514165293, 5.9396931817445875e-15, 0.006697469531842526,
-         0.11600807050965112, 0.0, 0.0, 3.3306690738754696e-16, 0.007396040334115339],
-        [1.8321644450577423, 0.0, 0.0, 1.0583818344894667, 0.0, 0.0, 0.0, 0.0],
-        [12.166615937713335, 1.0656346520344786, 1.372526965137185, 351.3806124257218,
-         0.7149982196160245, 2.3582802377575263e-12, 4.884981308350689e-15,
-         1.6653345369377348e-16],
-        [6288.2698758943025, 3553.26965013067, 1123.7156135250852, 8210.704183082407,
-         7395.636283133532, 2102.1242393674765, 1476.417690674044, 473.7533384577855],
-    ],
-}
+FIXTURE = Path(__file__).resolve().parent.parent / "tests/fixtures/friedman_reference.json"
 
 
 def chi2_stat(ranks):
@@ -131,18 +97,39 @@ def monte_carlo(arr, resamples=10**6):
 
 
 def main():
-    for name, rows in CASES.items():
-        arr = np.array(rows)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--write", action="store_true", help="store the references in the fixture")
+    args = ap.parse_args()
+    fixture = json.loads(FIXTURE.read_text())
+    for case in fixture["cases"]:
+        arr = np.array(case["blocks"])
+        n, k = arr.shape
         r = stats.friedmanchisquare(*arr.T)
-        print(f"{name}: statistic {float(r.statistic)!r}, chi-square p {float(r.pvalue)!r}")
-        if name == "functions8":
-            p, se = monte_carlo(arr)
-            print(f"  Monte Carlo (10^6) p {p!r} +- {se!r}")
-        elif name == "ties6":
-            print(f"  brute force p {float(brute_force(arr))!r}")
+        case["statistic"] = float(r.statistic)
+        case["p_chi2"] = float(r.pvalue)
+        arrangements = math.factorial(k) ** (n - 1)
+        if arrangements <= 8 * 10**6:
+            p = float(brute_force(arr))
+            if math.factorial(k) ** n <= 10**6:
+                exact = float(scipy_exact(arr))
+                assert abs(exact - p) <= 1e-12 * p, (case["name"], exact, p)
+                p = exact
+            case.update(method="exact", p=p)
+            case.pop("standard_error", None)
         else:
-            print(f"  exact p (scipy permutation_test) {float(scipy_exact(arr))!r}")
-            print(f"  brute force p {float(brute_force(arr))!r}")
+            p, se = monte_carlo(arr)
+            case.update(method="monte-carlo, 10^6", p=float(p), standard_error=float(se))
+        print(f"{case['name']}: statistic {case['statistic']!r}, chi-square p "
+              f"{case['p_chi2']!r}, {case['method']} p {case['p']!r}"
+              + (f" +- {case['standard_error']!r}" if "standard_error" in case else ""))
+    if args.write:
+        text = json.dumps(fixture, indent=1)
+        # Rows of numbers on one line each.
+        text = re.sub(r"\[\s+([^\[\]{}]*?)\s+\]",
+                      lambda m: "[" + ", ".join(v.strip() for v in m.group(1).split(",")) + "]",
+                      text)
+        FIXTURE.write_text(text + "\n")
+        print(f"wrote {FIXTURE}")
 
 
 if __name__ == "__main__":

@@ -8,8 +8,12 @@
 //! vector); a value with its gradient is `1 + d` evaluations (the value and the `d`
 //! forward differences a gradient is worth to a black-box method; `harness/evaluator.rs`).
 
+mod common;
+
+use common::Probe;
 use optbench::base::TrialSeed;
 use optbench::harness::{OptimizerConfig, TrialRecord};
+use optbench::objective::functions::ExpDecay;
 use optbench::objective::hysteresis::RbfFit;
 use optbench::objective::source::{SimOptions, Source};
 use optbench::objective::{Bounds, Objective};
@@ -21,159 +25,10 @@ use optbench::physics::rbf::{Mode, Narx, RbfNet};
 use optbench::pipeline::runner::{TrialSpec, run_trial};
 use optbench::registry::{default_optimizer, optimizer_kinds};
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
-
-/// `y = a e^(-b t) + c` on `[0, 2]` fitted in `(a, b, c)`: a least-squares objective with an
-/// analytic gradient and residuals, so every kind of call has a real implementation.
-struct Decay {
-    t: Vec<f64>,
-    y: Vec<f64>,
-    bounds: Bounds,
-}
-
-impl Decay {
-    fn new() -> Self {
-        let t: Vec<f64> = (0..100).map(|k| k as f64 * 0.02).collect();
-        let y = t.iter().map(|t| 2.0 * (-1.3 * t).exp() + 0.4).collect();
-        Decay {
-            t,
-            y,
-            bounds: Bounds::new(vec![0.0, 0.01, -5.0], vec![10.0, 10.0, 5.0]).unwrap(),
-        }
-    }
-
-    fn residual_vector(&self, x: &[f64]) -> Vec<f64> {
-        self.t
-            .iter()
-            .zip(&self.y)
-            .map(|(t, y)| y - (x[0] * (-x[1] * t).exp() + x[2]))
-            .collect()
-    }
-}
-
-impl Objective for Decay {
-    fn name(&self) -> &str {
-        "decay"
-    }
-    fn bounds(&self) -> &Bounds {
-        &self.bounds
-    }
-    fn evaluate(&self, x: &[f64]) -> f64 {
-        0.5 * self.residual_vector(x).iter().map(|r| r * r).sum::<f64>()
-    }
-    fn value_and_gradient(&self, x: &[f64], g: &mut [f64]) -> Option<f64> {
-        let r = self.residual_vector(x);
-        g.fill(0.0);
-        for (ri, t) in r.iter().zip(&self.t) {
-            let e = (-x[1] * t).exp();
-            g[0] -= ri * e;
-            g[1] += ri * x[0] * t * e;
-            g[2] -= ri;
-        }
-        Some(0.5 * r.iter().map(|r| r * r).sum::<f64>())
-    }
-    fn has_gradient(&self) -> bool {
-        true
-    }
-    fn residuals(&self, x: &[f64], r: &mut Vec<f64>) -> Option<f64> {
-        *r = self.residual_vector(x);
-        Some(0.5 * r.iter().map(|r| r * r).sum::<f64>())
-    }
-}
-
-/// Wraps an objective and counts what it really computes, on whatever thread: points valued
-/// (alone or in batches), value-and-gradient calls, residual vectors; and the size of every
-/// call in call order, to tell where batches end.
-struct Counted {
-    inner: Arc<dyn Objective>,
-    values: AtomicU64,
-    gradients: AtomicU64,
-    residuals: AtomicU64,
-    calls: Mutex<Vec<u64>>,
-}
-
-impl Counted {
-    fn new(inner: Arc<dyn Objective>) -> Self {
-        Counted {
-            inner,
-            values: AtomicU64::new(0),
-            gradients: AtomicU64::new(0),
-            residuals: AtomicU64::new(0),
-            calls: Mutex::new(Vec::new()),
-        }
-    }
-
-    fn log(&self, n: u64) {
-        self.calls.lock().unwrap().push(n);
-    }
-
-    /// Real calls under the cost model: values, residual vectors, `1 + d` per gradient.
-    fn cost(&self) -> u64 {
-        self.values.load(Ordering::SeqCst)
-            + self.residuals.load(Ordering::SeqCst)
-            + (1 + self.dim() as u64) * self.gradients.load(Ordering::SeqCst)
-    }
-
-    /// Whether evaluation `e` (1-based, in call order) lies inside a call with more points
-    /// after it.
-    fn inside_a_batch(&self, e: u64) -> bool {
-        let mut end = 0;
-        for &n in self.calls.lock().unwrap().iter() {
-            end += n;
-            if e <= end {
-                return e < end;
-            }
-        }
-        false
-    }
-}
-
-impl Objective for Counted {
-    fn name(&self) -> &str {
-        "counted"
-    }
-    fn bounds(&self) -> &Bounds {
-        self.inner.bounds()
-    }
-    fn evaluate(&self, x: &[f64]) -> f64 {
-        self.values.fetch_add(1, Ordering::SeqCst);
-        self.log(1);
-        self.inner.evaluate(x)
-    }
-    fn evaluate_batch(&self, points: &[f64], out: &mut [f64]) {
-        self.values.fetch_add(out.len() as u64, Ordering::SeqCst);
-        self.log(out.len() as u64);
-        self.inner.evaluate_batch(points, out);
-    }
-    fn penalty_threshold(&self) -> Option<f64> {
-        self.inner.penalty_threshold()
-    }
-    fn value_and_gradient(&self, x: &[f64], grad: &mut [f64]) -> Option<f64> {
-        let f = self.inner.value_and_gradient(x, grad)?;
-        self.gradients.fetch_add(1, Ordering::SeqCst);
-        self.log(1 + self.dim() as u64);
-        Some(f)
-    }
-    fn has_gradient(&self) -> bool {
-        self.inner.has_gradient()
-    }
-    fn residuals(&self, x: &[f64], r: &mut Vec<f64>) -> Option<f64> {
-        let c = self.inner.residuals(x, r)?;
-        self.residuals.fetch_add(1, Ordering::SeqCst);
-        self.log(1);
-        Some(c)
-    }
-    fn residuals_batch(&self, points: &[f64]) -> Option<Vec<(f64, Vec<f64>)>> {
-        let out = self.inner.residuals_batch(points)?;
-        self.residuals.fetch_add(out.len() as u64, Ordering::SeqCst);
-        self.log(out.len() as u64);
-        Some(out)
-    }
-}
+use std::sync::Arc;
 
 fn trial(
-    obj: &Arc<Counted>,
+    obj: &Arc<Probe>,
     cfg: &dyn OptimizerConfig,
     budget: u64,
     stop_value: Option<f64>,
@@ -260,7 +115,7 @@ fn measure(
     inner: &Arc<dyn Objective>,
     budget: u64,
 ) -> Vec<Row> {
-    let full_obj = Arc::new(Counted::new(Arc::clone(inner)));
+    let full_obj = Arc::new(Probe::of(Arc::clone(inner)));
     let full = trial(&full_obj, cfg, budget, None);
     let mut rows = vec![(
         name.to_string(),
@@ -274,7 +129,7 @@ fn measure(
     let inside: Vec<(u64, f64)> = full
         .improvements
         .iter()
-        .filter(|(e, _)| full_obj.inside_a_batch(*e))
+        .filter(|(e, _)| full_obj.inside_a_call(*e))
         .copied()
         .collect();
     let from = if inside.is_empty() {
@@ -287,11 +142,11 @@ fn measure(
     };
     if cfg.batch_size() > 1 {
         assert!(
-            full_obj.inside_a_batch(hit),
+            full_obj.inside_a_call(hit),
             "{name}: no improvement inside a batch to stop at"
         );
     }
-    let stop_obj = Arc::new(Counted::new(Arc::clone(inner)));
+    let stop_obj = Arc::new(Probe::of(Arc::clone(inner)));
     let stopped = trial(&stop_obj, cfg, budget, Some(value));
     assert!(stopped.stopped_at_target, "{name}: the stop value was hit");
     assert_eq!(
@@ -323,7 +178,8 @@ fn measure(
 
 #[test]
 fn every_optimizer_is_charged_exactly_what_the_objective_computed() {
-    let decay: Arc<dyn Objective> = Arc::new(Decay::new());
+    let box3 = Bounds::new(vec![0.0, 0.01, -5.0], vec![10.0, 10.0, 5.0]).unwrap();
+    let decay: Arc<dyn Objective> = Arc::new(ExpDecay::new([2.0, 1.3, 0.4], box3));
     let mut rows = Vec::new();
     for (name, cfg) in configs(decay.bounds()) {
         rows.extend(measure(&name, cfg.as_ref(), &decay, 2000));
