@@ -67,7 +67,7 @@ fn every_optimizer_spends_exactly_its_budget_inside_the_bounds() {
                 let r = trial(probe.clone(), cfg.as_ref(), budget, None, budget);
                 assert_eq!(r.evaluations, budget, "{name} budget {budget}");
                 assert_eq!(
-                    probe.calls(),
+                    probe.cost(),
                     budget,
                     "{name}: real calls must equal the count"
                 );
@@ -94,9 +94,17 @@ fn a_target_ends_the_trial_at_the_hitting_evaluation() {
         assert!(r.stopped_at_target, "{name}");
         assert!(r.best <= 1.0, "{name}");
         let hit = r.improvements.last().unwrap();
+        // MSGA's membranes evaluate a round at once: the rest of the hit's round was
+        // computed, and is counted.
+        let end = if name.starts_with("msga") {
+            hit.0.div_ceil(200) * 200
+        } else {
+            hit.0
+        };
         assert_eq!(
-            hit.0, r.evaluations,
-            "{name}: stops at the evaluation that hit"
+            r.evaluations, end,
+            "{name}: stops at the evaluation that hit (hit at {})",
+            hit.0
         );
         assert!(
             r.improvements[..r.improvements.len() - 1]
@@ -124,10 +132,11 @@ fn traces_are_monotone_and_consistent() {
             "{name}"
         );
         assert_eq!(r.improvements.last().unwrap().1, r.best);
-        // Each checkpoint equals the last improvement at or before it.
+        // Each checkpoint equals the last improvement at or before it (+inf before the
+        // first value: BP's first value comes with a gradient, after 1 + d evaluations).
         for &(e, v) in &r.checkpoints {
-            let last = r.improvements.iter().rev().find(|i| i.0 <= e).unwrap();
-            assert_eq!(last.1, v, "{name} at {e}");
+            let last = r.improvements.iter().rev().find(|i| i.0 <= e);
+            assert_eq!(last.map_or(f64::INFINITY, |i| i.1), v, "{name} at {e}");
         }
     }
 }
@@ -270,12 +279,13 @@ fn different_seeds_give_different_runs() {
 fn bp_converges_on_smooth_functions_with_its_gradient() {
     use optbench::optimizer::gradient::GradientConfig;
     let cfg = GradientConfig::default();
-    // Sphere: 300 gradient steps from a random start reach 1e-8.
+    // Sphere: 300 gradient steps (each charged 1 + 10 evaluations) from a random start
+    // reach 1e-8.
     let probe = Arc::new(Probe::new(TestFunction::Sphere, 10));
-    let r = trial(probe, &cfg, 300, None, 1);
+    let r = trial(probe, &cfg, 300 * 11, None, 1);
     assert!(r.best < 1e-8, "sphere: {}", r.best);
     // Rosenbrock-2, the curved valley that gradient descent crawls along: the bold-driver
-    // rate keeps it stable and 20,000 gradients get within 1e-3.
+    // rate keeps it stable and 20,000 gradients (60,000 evaluations) get within 1e-3.
     let probe = Arc::new(Probe::new(TestFunction::Rosenbrock, 2));
     let r = trial(
         probe,
@@ -283,7 +293,7 @@ fn bp_converges_on_smooth_functions_with_its_gradient() {
             learning_rate: 1e-3,
             momentum: 0.9,
         },
-        20_000,
+        20_000 * 3,
         None,
         1,
     );

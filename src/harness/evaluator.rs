@@ -6,6 +6,25 @@
 //! its own (MSGA) takes a [`Grant`] of a fixed number of evaluations, evaluates on any
 //! thread, and hands the [`Evaluated`] result back through [`Evaluator::commit`]; the
 //! coordinator commits in a fixed order, so counts and traces do not depend on scheduling.
+//!
+//! # What an evaluation is
+//! The rule: the objective never computes more than the count says. One value is one
+//! evaluation, alone, in a batch, or with its residual vector. One value with its gradient
+//! is `1 + d` evaluations ([`Evaluator::gradient_cost`]): a gradient is `d` numbers, which
+//! a black-box method buys with `d` forward differences (what `lbfgs` pays on finite
+//! differences, and the unit of Moré and Wild's data profiles), so methods that use a
+//! gradient get no information cheaper than the others and budgets mean the same for all.
+//! The currency is information, not arithmetic: a back-propagation pass costs a few value
+//! passes of work, not `d` (the trial's wall time says that), and is still charged `d`.
+//!
+//! Under a stop value (or a stall rule) a trial can end inside a batch, so the evaluator
+//! evaluates such batches point by point and computes nothing after the hit (a batched
+//! objective loses its lanes only in trials that can stop early). Grants are computed on
+//! other threads before anyone knows where the trial ends: whatever a grant computed is
+//! counted, also past a stop (then as spent, not searched: the best and its improvement
+//! entry stay at the hit, which remains the runtime-to-target of ERTs and ECDFs, while
+//! `evaluations` is everything spent). Which grants exist depends on counts only, so this is
+//! deterministic.
 
 use crate::objective::{Bounds, Objective};
 use std::sync::Arc;
@@ -168,26 +187,50 @@ impl Evaluator {
         &self.trace.best_x
     }
 
+    /// Evaluations charged for one value with its gradient: the value and the `d` forward
+    /// differences the gradient is worth (see the module documentation).
+    pub fn gradient_cost(&self) -> u64 {
+        1 + self.dim() as u64
+    }
+
+    /// Whether the trial can end inside a batch (a stop value or a stall rule), so batches
+    /// are evaluated point by point.
+    pub fn can_stop_early(&self) -> bool {
+        self.stop_value.is_some() || self.stall.is_some()
+    }
+
+    /// Counts one evaluation and the checkpoint it may complete.
     #[inline]
-    fn record(&mut self, x: &[f64], f: f64) {
+    fn tick(&mut self) {
         self.used += 1;
+        if self.grid.get(self.next_checkpoint) == Some(&self.used) {
+            self.trace.checkpoints.push((self.used, self.trace.best));
+            self.next_checkpoint += 1;
+        }
+    }
+
+    /// Counts the kind of value `f` is (non-finite, penalised).
+    #[inline]
+    fn tally(&mut self, f: f64) {
         if !f.is_finite() {
             self.trace.nonfinite += 1;
         } else if f >= self.penalty {
             self.trace.penalised += 1;
         }
+    }
+
+    #[inline]
+    fn record(&mut self, x: &[f64], f: f64) {
+        self.tally(f);
         if f < self.trace.best || self.trace.best_x.is_empty() {
             if f < self.trace.best {
                 self.trace.best = f;
-                self.trace.improvements.push((self.used, f));
+                self.trace.improvements.push((self.used + 1, f));
             }
             self.trace.best_x.clear();
             self.trace.best_x.extend_from_slice(x);
         }
-        if self.grid.get(self.next_checkpoint) == Some(&self.used) {
-            self.trace.checkpoints.push((self.used, self.trace.best));
-            self.next_checkpoint += 1;
-        }
+        self.tick();
         if let Some(s) = self.stop_value
             && self.trace.best <= s
         {
@@ -205,36 +248,53 @@ impl Evaluator {
         }
     }
 
-    /// Records values computed for `points` in order, until the stop value is reached.
-    /// Returns how many were counted; `values` past that are set to +inf.
-    fn record_all(&mut self, points: &[f64], values: &mut [f64]) -> usize {
+    /// Counts values computed for `points`: in order into the search until the trial
+    /// stops, the rest as spent only (they were computed). Returns how many entered the
+    /// search; `values` past that are set to +inf.
+    fn count_computed(&mut self, points: &[f64], values: &mut [f64]) -> usize {
         let d = self.dim();
-        let mut counted = 0;
+        let mut searched = 0;
         for (x, f) in points.chunks_exact(d).zip(values.iter_mut()) {
             if self.stopped {
-                break;
+                self.tally(*f);
+                self.tick();
+                *f = f64::INFINITY;
+            } else {
+                self.record(x, *f);
+                searched += 1;
             }
-            self.record(x, *f);
-            counted += 1;
         }
-        values[counted..].fill(f64::INFINITY);
-        counted
+        searched
     }
 
     /// Evaluates the row-major `points` into `out` (one value per point) as far as the
-    /// budget allows. Points that were not counted (budget spent or stop value reached)
-    /// get +inf. Returns the number counted.
+    /// budget allows. Points that were not evaluated (budget spent or stop value reached)
+    /// get +inf. Returns the number evaluated.
     pub fn evaluate_batch(&mut self, points: &[f64], out: &mut [f64]) -> usize {
         let d = self.dim();
         assert_eq!(points.len(), out.len() * d, "batch shape");
         let k = (self.remaining() as usize).min(out.len());
+        out[k..].fill(f64::INFINITY);
+        if self.can_stop_early() {
+            // Nothing after the hit is computed.
+            for i in 0..k {
+                if self.stopped {
+                    out[i..k].fill(f64::INFINITY);
+                    return i;
+                }
+                let x = &points[i * d..(i + 1) * d];
+                self.objective.evaluate_batch(x, &mut out[i..=i]);
+                out[i] = sanitize(out[i]);
+                self.record(x, out[i]);
+            }
+            return k;
+        }
         self.objective
             .evaluate_batch(&points[..k * d], &mut out[..k]);
         for v in &mut out[..k] {
             *v = sanitize(*v);
         }
-        out[k..].fill(f64::INFINITY);
-        self.record_all(&points[..k * d], &mut out[..k])
+        self.count_computed(&points[..k * d], &mut out[..k])
     }
 
     /// Evaluates one point; `None` once the budget is spent or the stop value reached.
@@ -243,16 +303,20 @@ impl Evaluator {
         (self.evaluate_batch(x, &mut out) == 1).then_some(out[0])
     }
 
-    /// Value and gradient at `x`, counted as one evaluation (a gradient costs a few function
-    /// evaluations; budgets stay comparable in order of magnitude, and reports say so).
-    /// `None` once the budget is spent, or if the objective has no gradient.
+    /// Value and gradient at `x`, charged [`Evaluator::gradient_cost`] evaluations (the
+    /// value is the last of them, where an improvement or a hit is recorded). `None`, and
+    /// nothing computed, when fewer evaluations remain than that, or if the objective has no
+    /// gradient.
     pub fn evaluate_with_gradient(&mut self, x: &[f64], grad: &mut [f64]) -> Option<f64> {
-        if self.remaining() == 0 {
+        if self.remaining() < self.gradient_cost() {
             return None;
         }
         let f = sanitize(self.objective.value_and_gradient(x, grad)?);
         if !f.is_finite() || grad.iter().any(|g| !g.is_finite()) {
             grad.fill(0.0);
+        }
+        for _ in 1..self.gradient_cost() {
+            self.tick();
         }
         self.record(x, f);
         Some(f)
@@ -260,17 +324,33 @@ impl Evaluator {
 
     /// Costs and residuals ([`Objective::residuals`]) of the row-major `points`, each
     /// counted as one evaluation, as many as the budget allows (in order, until the stop
-    /// value is reached); `None` if the objective has no residuals.
+    /// value is reached, after which nothing is computed); `None` if the objective has no
+    /// residuals.
     pub fn evaluate_residuals_batch(&mut self, points: &[f64]) -> Option<Vec<(f64, Vec<f64>)>> {
         let d = self.dim();
         let k = (self.remaining() as usize).min(points.len() / d.max(1));
-        let mut out = self.objective.residuals_batch(&points[..k * d])?;
-        let mut values: Vec<f64> = out.iter().map(|(c, _)| sanitize(*c)).collect();
-        let counted = self.record_all(&points[..k * d], &mut values);
-        out.truncate(counted);
-        for ((c, r), v) in out.iter_mut().zip(values) {
-            *c = v;
-            if !v.is_finite() {
+        let mut out = if self.can_stop_early() {
+            let mut out = Vec::with_capacity(k);
+            for x in points[..k * d].chunks_exact(d) {
+                if self.stopped {
+                    break;
+                }
+                let mut one = self.objective.residuals_batch(x)?;
+                let c = sanitize(one[0].0);
+                self.record(x, c);
+                out.append(&mut one);
+            }
+            out
+        } else {
+            let mut out = self.objective.residuals_batch(&points[..k * d])?;
+            let mut values: Vec<f64> = out.iter().map(|(c, _)| sanitize(*c)).collect();
+            let searched = self.count_computed(&points[..k * d], &mut values);
+            out.truncate(searched);
+            out
+        };
+        for (c, r) in &mut out {
+            *c = sanitize(*c);
+            if !c.is_finite() {
                 r.clear();
             }
         }
@@ -294,13 +374,13 @@ impl Evaluator {
         }
     }
 
-    /// Counts the evaluations of a grant, in order, until the stop value is reached.
-    /// Returns how many were counted.
+    /// Counts the evaluations of a grant, in order: into the search until the trial stops,
+    /// after that as spent (they were computed). Returns how many entered the search.
     pub fn commit(&mut self, mut e: Evaluated) -> usize {
         self.reserved -= e.quota as u64;
         let k = e.evaluated;
         let d = self.dim();
-        self.record_all(&e.points[..k * d], &mut e.values[..k])
+        self.count_computed(&e.points[..k * d], &mut e.values[..k])
     }
 
     /// Ends the trial and returns its trace.
@@ -421,12 +501,42 @@ mod tests {
         assert_eq!(t.checkpoints.last(), Some(&(5, 2.0)));
     }
 
+    /// Sphere that counts the values it computes.
+    struct Counting(Function, std::sync::atomic::AtomicU64);
+
+    impl Objective for Counting {
+        fn name(&self) -> &str {
+            "counting"
+        }
+        fn bounds(&self) -> &Bounds {
+            self.0.bounds()
+        }
+        fn evaluate(&self, x: &[f64]) -> f64 {
+            self.1.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+            self.0.evaluate(x)
+        }
+        fn value_and_gradient(&self, x: &[f64], grad: &mut [f64]) -> Option<f64> {
+            self.evaluate(x);
+            self.0.value_and_gradient(x, grad)
+        }
+    }
+
+    fn counting(d: usize) -> Arc<Counting> {
+        Arc::new(Counting(
+            Function::standard(TestFunction::Sphere, d).unwrap(),
+            Default::default(),
+        ))
+    }
+
     #[test]
     fn stops_at_target_mid_batch() {
-        let mut ev = Evaluator::new(sphere(1), 100, Some(0.5));
+        let obj = counting(1);
+        let mut ev = Evaluator::new(obj.clone(), 100, Some(0.5));
         let mut out = vec![0.0; 4];
         let n = ev.evaluate_batch(&[3.0, 2.0, 0.1, 0.0], &mut out);
         assert_eq!(n, 3);
+        // The point after the hit was never computed.
+        assert_eq!(obj.1.load(std::sync::atomic::Ordering::SeqCst), 3);
         assert_eq!(out[3], f64::INFINITY);
         assert!(ev.done());
         let t = ev.finish();
@@ -479,5 +589,48 @@ mod tests {
         let t = ev.finish();
         assert_eq!(t.evaluations, 5);
         assert_eq!(t.improvements, vec![(1, 16.0), (4, 1.0)]);
+    }
+
+    #[test]
+    fn grants_computed_past_a_stop_are_counted_as_spent() {
+        let mut ev = Evaluator::new(sphere(1), 100, Some(0.5));
+        let (g1, g2) = (ev.grant(3), ev.grant(3));
+        let e1 = g1.evaluate(&[2.0, 0.5, 0.0]);
+        let e2 = g2.evaluate(&[0.1, 0.2, 3.0]);
+        // The second point of the first grant reaches the value: the rest is spent, not
+        // searched (0.0 and 0.01 never become the best).
+        assert_eq!(ev.commit(e1), 2);
+        assert_eq!(ev.commit(e2), 0);
+        let t = ev.finish();
+        assert!(t.stopped_at_target);
+        assert_eq!(t.evaluations, 6);
+        assert_eq!(t.improvements, vec![(1, 4.0), (2, 0.25)]);
+        assert_eq!((t.best, t.best_x), (0.25, vec![0.5]));
+        assert_eq!(t.checkpoints.last(), Some(&(6, 0.25)));
+    }
+
+    #[test]
+    fn a_gradient_costs_its_value_and_d_forward_differences() {
+        let obj = counting(3);
+        let mut ev = Evaluator::new(obj.clone(), 10, None);
+        assert_eq!(ev.gradient_cost(), 4);
+        let mut g = vec![0.0; 3];
+        assert_eq!(
+            ev.evaluate_with_gradient(&[1.0, 0.0, 0.0], &mut g),
+            Some(1.0)
+        );
+        assert_eq!(g, vec![2.0, 0.0, 0.0]);
+        assert_eq!(ev.used(), 4);
+        assert!(
+            ev.evaluate_with_gradient(&[0.5, 0.0, 0.0], &mut g)
+                .is_some()
+        );
+        // Two evaluations left: not enough for a gradient, and nothing is computed.
+        assert_eq!(ev.evaluate_with_gradient(&[0.0; 3], &mut g), None);
+        assert_eq!(obj.1.load(std::sync::atomic::Ordering::SeqCst), 2);
+        let t = ev.finish();
+        assert_eq!(t.evaluations, 8);
+        // Each value is recorded as the last evaluation of its call.
+        assert_eq!(t.improvements, vec![(4, 1.0), (8, 0.25)]);
     }
 }

@@ -351,6 +351,9 @@ impl Objective for RbfFit {
         }
     }
 
+    /// One-step mode only. A call is a back-propagation pass over every training sample
+    /// (forward and backward; its own sum is discarded) and one batched value pass: about
+    /// three value passes of work, charged `1 + d` evaluations (36 for the 3-7-1 network).
     fn value_and_gradient(&self, p: &[f64], grad: &mut [f64]) -> Option<f64> {
         match self.mode {
             // The value from the batched path, so that every optimizer records the same

@@ -135,7 +135,10 @@ pub trait Objective: Send + Sync {
     }
 
     /// Value and gradient at `x`, for objectives that have one (gradient-based baselines
-    /// such as back-propagation); `None` where the objective is a pure black box.
+    /// such as back-propagation); `None` where the objective is a pure black box. The harness
+    /// charges a call `1 + d` evaluations (the value and the forward differences the gradient
+    /// is worth), so an implementation may cost up to that many value passes; each says
+    /// what it computes.
     fn value_and_gradient(&self, _x: &[f64], _grad: &mut [f64]) -> Option<f64> {
         None
     }

@@ -1,7 +1,11 @@
 //! Back-propagation baseline: gradient descent with a momentum term,
 //! `dp(k) = -eta * grad J(p(k)) + mu * dp(k-1)` (the update of dissertation eq. 4.6-4.8), on the
-//! objective's analytic gradient, one full-data gradient per iteration. Each gradient counts
-//! as one evaluation. The start point is uniform in the box (from the trial's stream); steps
+//! objective's analytic gradient, one full-data gradient per iteration. Each iteration is
+//! charged `1 + d` evaluations, the value and the `d` forward differences its gradient is
+//! worth to a black-box method (see `harness/evaluator.rs`): at equal evaluations BP gets a
+//! `1 + d`-th of the iterations a population method gets points, and the remainder of a
+//! budget too small for a gradient is spent on plain values of the last point, so the
+//! budget is spent exactly. The start point is uniform in the box (from the trial's stream); steps
 //! that leave the box are clipped to it. The rate adapts by the classic "bold driver" rule
 //! for back-propagation (Vogl et al. 1988): a step that increases the cost is undone, the
 //! rate halved and the momentum reset; a step that decreases it grows the rate by 5 %. The
@@ -68,7 +72,8 @@ struct Gradient {
 impl Optimizer for Gradient {
     fn step(&mut self, ev: &mut Evaluator) {
         let Some(f) = ev.evaluate_with_gradient(&self.x, &mut self.grad) else {
-            // No gradient available: spend the evaluation as a plain one so the run ends.
+            // Fewer evaluations left than a gradient costs (or no gradient): spend them as
+            // plain values, so the run ends on its budget.
             ev.evaluate(&self.x);
             return;
         };

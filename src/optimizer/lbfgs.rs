@@ -11,7 +11,9 @@
 //! itself, while here only the [`Evaluator`] evaluates and counts. Gradients are forward
 //! differences by default (d evaluations each, counted like any other; step
 //! sqrt(machine epsilon) x max(|x_i|, 1e-3 x width_i), taken inward at an upper bound), or
-//! the objective's analytic gradient (one evaluation each, as for `bp`).
+//! the objective's analytic gradient, charged the same d beside its value (as for `bp`): the
+//! analytic gradient buys precision, not evaluations, and every line-search point then costs
+//! `1 + d`.
 //!
 //! When a search converges (projected gradient zero, or no decrease along the steepest
 //! descent direction) it restarts from a uniform random point of the box, so a standalone
@@ -33,7 +35,8 @@ pub const POLISH_STREAM: u64 = 7;
 pub enum GradientSource {
     /// Forward differences, d evaluations per gradient: works on any black box.
     FiniteDifference,
-    /// The objective's own gradient, one evaluation each (objectives that have one).
+    /// The objective's own gradient (objectives that have one), charged `1 + d` with its
+    /// value like forward differences.
     Analytic,
 }
 
@@ -104,13 +107,18 @@ impl Lbfgs {
     }
 
     /// Value (and, with an analytic gradient, the gradient) at `x`; None once the trial is
-    /// over.
+    /// over, or once fewer evaluations remain than a gradient costs (then one is spent on a
+    /// plain value, so that the trial still ends on its budget).
     fn value(&self, ev: &mut Evaluator, x: &[f64], grad: &mut Vec<f64>) -> Option<f64> {
         match self.cfg.gradient {
             GradientSource::FiniteDifference => ev.evaluate(x),
             GradientSource::Analytic => {
                 grad.resize(x.len(), 0.0);
-                ev.evaluate_with_gradient(x, grad)
+                let f = ev.evaluate_with_gradient(x, grad);
+                if f.is_none() {
+                    ev.evaluate(x);
+                }
+                f
             }
         }
     }
@@ -228,6 +236,8 @@ impl Optimizer for Lbfgs {
                     let grad = if self.cfg.gradient == GradientSource::Analytic {
                         let mut g = vec![0.0; x.len()];
                         if ev.evaluate_with_gradient(&x, &mut g).is_none() {
+                            // Too few evaluations left for a gradient: spend them.
+                            ev.evaluate(&x);
                             return;
                         }
                         g

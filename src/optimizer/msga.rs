@@ -48,6 +48,12 @@
 //! commits the evaluations in round and membrane order; results are bit-identical to the
 //! single-thread driver (`threads = false`, same lag) and independent of scheduling
 //! (tested with random pauses).
+//!
+//! Every evaluation computed is counted. A round's membranes evaluate at once, so when a
+//! stop value is reached inside a round the rest of that round has been computed too: both
+//! drivers count the whole round (`evaluations` is what was spent; the trace's hit stays at
+//! the evaluation that reached the value). With a stop value the coordinator grants one
+//! round at a time, so no round after it is ever computed.
 
 use super::operators::{Mutation, Roulette, arithmetic_crossover, ranking};
 use crate::base::TrialSeed;
@@ -135,7 +141,7 @@ impl OptimizerConfig for MsgaConfig {
             Box::new(Sequential {
                 membranes,
                 neighbours: self.neighbours(),
-                values: vec![0.0; self.objects],
+                objects: self.objects,
                 lag: self.migration_lag,
                 sent: std::collections::VecDeque::new(),
             })
@@ -294,7 +300,7 @@ impl Membrane {
 struct Sequential {
     membranes: Vec<Membrane>,
     neighbours: Vec<Vec<usize>>,
-    values: Vec<f64>,
+    objects: usize,
     lag: usize,
     /// Every membrane's migrants of the last `lag + 1` evolution steps, oldest first.
     sent: std::collections::VecDeque<Vec<Migrants>>,
@@ -303,10 +309,16 @@ struct Sequential {
 impl Optimizer for Sequential {
     fn step(&mut self, ev: &mut Evaluator) {
         let evolution = self.membranes[0].initialized;
+        // Grants, committed after the round as on threads: a round is computed whole and
+        // counted whole, so a stop inside it costs what it costs the threaded driver.
+        let mut round = Vec::with_capacity(self.membranes.len());
         for m in &mut self.membranes {
-            let cand = m.propose();
-            ev.evaluate_batch(cand, &mut self.values);
-            m.accept(&self.values);
+            let evaluated = ev.grant(self.objects).evaluate(m.propose());
+            m.accept(evaluated.values());
+            round.push(evaluated);
+        }
+        for evaluated in round {
+            ev.commit(evaluated);
         }
         if evolution {
             self.sent
@@ -443,15 +455,19 @@ impl Optimizer for Threaded {
         // only if the rounds before it leave the optimizer's own budget unspent, the
         // condition under which the caller steps again (a polish may take over at that
         // budget, and must find no evaluations still reserved).
-        while self.open == 0 || (self.open <= AHEAD && self.granted < self.budget) {
+        // A trial that can end inside a round (a stop value) is granted one round at a
+        // time: a round's membranes run at once, so the rest of the round that ends it is
+        // computed (and counted) whatever the driver, but no round after it.
+        let ahead = if ev.can_stop_early() { 0 } else { AHEAD };
+        while self.open == 0 || (self.open <= ahead && self.granted < self.budget) {
             grant_round(ev, &mut self.granted);
             self.open += 1;
         }
         commit_round(ev);
         self.open -= 1;
         if ev.done() {
-            // Stopped early (a stop value reached): the rounds granted ahead come after the
-            // end; committed, they count nothing and release their reservations.
+            // Stopped early (a stop value reached): rounds granted ahead were computed, and
+            // committed they are counted as spent (with a stop value there are none).
             while self.open > 0 {
                 commit_round(ev);
                 self.open -= 1;

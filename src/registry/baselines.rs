@@ -136,7 +136,7 @@ const LBFGS_PARAMS: &[Spec] = &[
         name: "gradient",
         kind: Kind::Choice(&["finite-difference", "analytic"]),
         default: D::Str("finite-difference"),
-        help: "forward differences (dim evaluations per gradient) or the objective's own gradient (one evaluation; fitting objectives with one)",
+        help: "forward differences (dim evaluations per gradient) or the objective's own gradient (charged the same: 1 + dim evaluations with its value; fitting objectives with one)",
     },
 ];
 

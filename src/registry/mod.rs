@@ -683,7 +683,7 @@ pub fn optimizer_kinds() -> Vec<OptimizerKind> {
         },
         OptimizerKind {
             name: "bp",
-            help: "back-propagation baseline: gradient descent with momentum (needs a gradient; one gradient = one evaluation)",
+            help: "back-propagation baseline: gradient descent with momentum (needs a gradient; one gradient step = 1 + dim evaluations)",
             params: BP_PARAMS,
             build: build_bp,
         },

@@ -221,11 +221,14 @@ pub fn ranks_markdown(a: &Analysis) -> String {
     );
     writeln!(
         s,
-        "\nFriedman test over {} objectives: chi2 = {:.3}, df = {}, p = {}",
+        "\nFriedman test over {} objectives: chi2 = {:.3}, df = {}, p = {} ({}; the \
+         chi-square approximation, rough for few objectives, gives {})",
         a.objectives.len(),
         f.statistic,
         f.df,
-        sig(f.p_value, 3)
+        sig(f.p_value, 3),
+        f.method.label(),
+        sig(f.p_chi2, 3)
     )
     .unwrap();
     s

@@ -1,6 +1,6 @@
 //! Rank-based comparisons of optimizers: Mann-Whitney U for one objective, Vargha-Delaney
 //! A12 as its effect size, Holm's correction across objectives, and Friedman's test across
-//! all objectives at once.
+//! all objectives at once (its permutation p-value in [`super::friedman`]).
 //!
 //! Rank tests are used because final values of stochastic optimizers are rarely normal
 //! (heavy tails, many runs ending exactly at the optimum). The tests and the correction
@@ -17,6 +17,7 @@
 //! normal tail is therefore taken from `ChiSquared(1)::sf` (regularised incomplete gamma,
 //! ~1e-14 relative), using 2 P(Z > z) = P(chi2_1 > z^2) for z >= 0.
 
+use super::friedman::{FriedmanMethod, permutation_p};
 use super::rank::average_ranks;
 use serde::{Deserialize, Serialize};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
@@ -174,8 +175,13 @@ pub struct Friedman {
     pub statistic: f64,
     /// Degrees of freedom: number of treatments minus one.
     pub df: usize,
-    /// Upper tail of the chi-square distribution with `df` degrees of freedom at `statistic`.
+    /// P(statistic >= observed) over the arrangements of every block's ranks: exact, or
+    /// by seeded resampling where the distribution is too large ([`Friedman::method`]).
     pub p_value: f64,
+    pub method: FriedmanMethod,
+    /// The chi-square approximation (upper tail with `df` degrees of freedom), scipy's
+    /// p-value: rough for the few blocks of a benchmark suite.
+    pub p_chi2: f64,
     /// Mean rank of every treatment over the blocks (1 = best), in column order: the usual
     /// summary next to the test, and the input of critical-difference diagrams.
     pub mean_ranks: Vec<f64>,
@@ -187,9 +193,12 @@ pub struct Friedman {
 /// It answers "does any optimizer differ across the whole suite" from within-objective ranks
 /// only, so objectives of incomparable scales weigh the same. In each row the lowest value
 /// gets rank 1, ties get their average rank. The statistic and its tie correction are
-/// computed as `scipy.stats.friedmanchisquare(*columns)` does, the p-value is the chi-square
-/// approximation with k - 1 degrees of freedom (rough for few blocks; scipy's documentation
-/// asks for n > 10).
+/// computed as `scipy.stats.friedmanchisquare(*columns)` does. The p-value is the statistic's
+/// permutation distribution (every block's ranks arranged every way, ties kept; see
+/// `stats/friedman.rs`): exact where that is cheap (four blocks of up to six treatments),
+/// else from 10^5 resamples of a fixed seed. The chi-square approximation with k - 1 degrees
+/// of freedom is kept beside it; it is rough for few blocks (scipy's documentation asks for
+/// n > 10), and a benchmark's objectives are few.
 ///
 /// Differences from scipy: k = 2 is accepted (the statistic is well defined; without ties it
 /// is the squared z of the sign test), where scipy demands 3 columns; when every row is tied,
@@ -208,11 +217,13 @@ pub fn friedman(blocks: &[Vec<f64>]) -> Friedman {
     );
     let mut rank_sums = vec![0.0; k];
     let mut ties = 0.0;
+    let mut all_ranks = Vec::with_capacity(blocks.len());
     for row in blocks {
         let (ranks, groups) = average_ranks(row);
         for (s, r) in rank_sums.iter_mut().zip(&ranks) {
             *s += r;
         }
+        all_ranks.push(ranks);
         ties += groups
             .iter()
             .map(|&t| {
@@ -224,16 +235,22 @@ pub fn friedman(blocks: &[Vec<f64>]) -> Friedman {
     let (n, kf) = (blocks.len() as f64, k as f64);
     let c = 1.0 - ties / (kf * (kf * kf - 1.0) * n);
     let ssbn: f64 = rank_sums.iter().map(|r| r * r).sum();
-    let (statistic, p_value) = if c > 0.0 {
+    let (statistic, p_chi2, (p_value, method)) = if c > 0.0 {
         let statistic = (12.0 / (kf * n * (kf + 1.0)) * ssbn - 3.0 * n * (kf + 1.0)) / c;
-        (statistic, chi2_sf(kf - 1.0, statistic))
+        (
+            statistic,
+            chi2_sf(kf - 1.0, statistic),
+            permutation_p(&all_ranks),
+        )
     } else {
-        (0.0, 1.0)
+        (0.0, 1.0, (1.0, FriedmanMethod::Exact))
     };
     Friedman {
         statistic,
         df: k - 1,
         p_value,
+        method,
+        p_chi2,
         mean_ranks: rank_sums.iter().map(|s| s / n).collect(),
     }
 }
@@ -649,7 +666,7 @@ mod tests {
         let f = friedman(&blocks);
         assert_eq!(f.df, 3);
         assert_close(f.statistic, 5.150943396226428, 1e-12);
-        assert_close(f.p_value, 0.16107217239919921, 1e-13);
+        assert_close(f.p_chi2, 0.16107217239919921, 1e-13);
         let ranks = [2.0833333333333335, 2.0, 2.5, 3.4166666666666665];
         for (r, e) in f.mean_ranks.iter().zip(ranks) {
             assert_close(*r, e, 1e-15);
@@ -666,9 +683,9 @@ mod tests {
         let f = friedman(&blocks);
         assert_eq!(f.df, 2);
         assert_close(f.statistic, 6.400000000000006, 1e-12);
-        assert_close(f.p_value, 0.04076220397836611, 1e-13);
+        assert_close(f.p_chi2, 0.04076220397836611, 1e-13);
         // exp(-6.4 / 2) is the exact chi-square(2) tail: checks statrs' sf independently.
-        assert_close(f.p_value, (-f.statistic / 2.0).exp(), 1e-12);
+        assert_close(f.p_chi2, (-f.statistic / 2.0).exp(), 1e-12);
         assert_eq!(f.mean_ranks.len(), 3);
         for (r, e) in f.mean_ranks.iter().zip([1.2, 2.0, 2.8]) {
             assert_close(*r, e, 1e-15);

@@ -11,11 +11,13 @@
 
 pub mod bootstrap;
 pub mod ert;
+pub mod friedman;
 pub mod hypothesis;
 mod rank;
 
 pub use bootstrap::bootstrap_median_ci;
 pub use ert::{Ert, RunToTarget, ert, first_hit};
+pub use friedman::FriedmanMethod;
 pub use hypothesis::{
     Friedman, MannWhitney, PairedMethod, Wilcoxon, a12, friedman, holm, mann_whitney, wilcoxon,
 };

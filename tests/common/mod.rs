@@ -6,30 +6,78 @@ use optbench::objective::{Bounds, Objective};
 use std::collections::BTreeSet;
 use std::path::Path;
 use std::process::{Command, Output};
-use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 
-/// Wraps a test function and records what the harness cannot fake: every real call, every
-/// point outside the box, and the threads that evaluated.
+/// Wraps an objective (a test function by default) and records what the harness cannot
+/// fake: every real call on whatever thread, every point outside the box, the threads that
+/// evaluated, and the size of every call in call order.
 pub struct Probe {
-    inner: Function,
+    inner: Arc<dyn Objective>,
+    /// Values computed: alone, in batches, with a gradient, or with residuals.
     pub calls: AtomicU64,
+    /// Values computed with their gradient.
+    pub gradients: AtomicU64,
     pub out_of_bounds: AtomicU64,
     pub threads: Mutex<BTreeSet<String>>,
+    /// Evaluations of every call, in call order (`1 + d` for a gradient).
+    pub sizes: Mutex<Vec<u64>>,
 }
 
 impl Probe {
     pub fn new(kind: TestFunction, dim: usize) -> Self {
+        Self::of(Arc::new(Function::standard(kind, dim).unwrap()))
+    }
+
+    pub fn of(inner: Arc<dyn Objective>) -> Self {
         Probe {
-            inner: Function::standard(kind, dim).unwrap(),
+            inner,
             calls: AtomicU64::new(0),
+            gradients: AtomicU64::new(0),
             out_of_bounds: AtomicU64::new(0),
             threads: Mutex::new(BTreeSet::new()),
+            sizes: Mutex::new(Vec::new()),
         }
     }
 
     pub fn calls(&self) -> u64 {
         self.calls.load(Ordering::SeqCst)
+    }
+
+    /// The real calls in evaluations: one per value, and `d` more per gradient (the harness
+    /// charges a value with its gradient `1 + d`).
+    pub fn cost(&self) -> u64 {
+        self.calls() + self.dim() as u64 * self.gradients.load(Ordering::SeqCst)
+    }
+
+    /// Whether evaluation `e` (1-based, in call order) lies inside a call with more points
+    /// after it.
+    pub fn inside_a_call(&self, e: u64) -> bool {
+        let mut end = 0;
+        for &n in self.sizes.lock().unwrap().iter() {
+            end += n;
+            if e <= end {
+                return e < end;
+            }
+        }
+        false
+    }
+
+    /// Notes one value computed at `x`.
+    fn note(&self, x: &[f64]) {
+        self.calls.fetch_add(1, Ordering::SeqCst);
+        if !self.inner.bounds().contains(x) {
+            self.out_of_bounds.fetch_add(1, Ordering::SeqCst);
+        }
+        let name = std::thread::current()
+            .name()
+            .unwrap_or("unnamed")
+            .to_string();
+        self.threads.lock().unwrap().insert(name);
+    }
+
+    fn log(&self, n: u64) {
+        self.sizes.lock().unwrap().push(n);
     }
 }
 
@@ -41,27 +89,36 @@ impl Objective for Probe {
         self.inner.bounds()
     }
     fn evaluate(&self, x: &[f64]) -> f64 {
-        self.calls.fetch_add(1, Ordering::SeqCst);
-        if !self.inner.bounds().contains(x) {
-            self.out_of_bounds.fetch_add(1, Ordering::SeqCst);
-        }
-        let name = std::thread::current()
-            .name()
-            .unwrap_or("unnamed")
-            .to_string();
-        self.threads.lock().unwrap().insert(name);
+        self.log(1);
+        self.note(x);
         self.inner.evaluate(x)
+    }
+    fn evaluate_batch(&self, points: &[f64], out: &mut [f64]) {
+        self.log(out.len() as u64);
+        points.chunks_exact(self.dim()).for_each(|x| self.note(x));
+        self.inner.evaluate_batch(points, out);
     }
     fn optimum(&self) -> Option<f64> {
         self.inner.optimum()
     }
+    fn penalty_threshold(&self) -> Option<f64> {
+        self.inner.penalty_threshold()
+    }
     fn value_and_gradient(&self, x: &[f64], grad: &mut [f64]) -> Option<f64> {
-        let f = self.evaluate(x);
-        self.inner.value_and_gradient(x, grad)?;
+        let f = self.inner.value_and_gradient(x, grad)?;
+        self.gradients.fetch_add(1, Ordering::SeqCst);
+        self.log(1 + self.dim() as u64);
+        self.note(x);
         Some(f)
     }
     fn has_gradient(&self) -> bool {
-        true
+        self.inner.has_gradient()
+    }
+    fn residuals(&self, x: &[f64], r: &mut Vec<f64>) -> Option<f64> {
+        let c = self.inner.residuals(x, r)?;
+        self.log(1);
+        self.note(x);
+        Some(c)
     }
 }
 
