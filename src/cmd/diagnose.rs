@@ -5,7 +5,7 @@ use crate::base::error::{Error, Result};
 use crate::data::recording::{Columns, Delimiter, ReadOptions};
 use crate::diagnose::recordings::{Files, diagnose_files};
 use crate::diagnose::{Options, proof};
-use crate::physics::structure::{Effect, Hold};
+use crate::physics::structure::{Effect, Hold, MIN_SUBSTEPS};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -17,8 +17,14 @@ pub struct DiagnoseArgs {
     pub train: Vec<PathBuf>,
     /// Validation recording, a different excitation (CSV), never fitted. Repeatable, as
     /// --train.
-    #[arg(long, required_unless_present = "proof")]
+    #[arg(long, required_unless_present_any = ["proof", "holdout"], conflicts_with = "holdout")]
     pub validate: Vec<PathBuf>,
+    /// Instead of --validate: hold out this share of every training record's end (e.g.
+    /// 0.2), never fitted, as its validation record; for when no second recording exists,
+    /// or when the other recordings are kept for --test. The tail is the same excitation
+    /// continued, so it checks the fit on unseen samples, not on an unseen kind of input.
+    #[arg(long, conflicts_with = "validate_periodic")]
+    pub holdout: Option<f64>,
     /// Model family: bouc-wen (n fitted, kept only if BIC says so) or bouc-wen-n1 (n = 1).
     /// Default: bouc-wen; bouc-wen-n1 for --proof (the twin's n is 1; ten times faster).
     #[arg(long)]
@@ -64,10 +70,17 @@ pub struct DiagnoseArgs {
     /// Seconds per recording of the proof.
     #[arg(long, default_value_t = 4.0)]
     pub seconds: f64,
-    /// How the input moves between samples: zoh (a D/A staircase), linear, or bandlimited
-    /// (a continuous excitation sampled without aliasing, e.g. a multisine or sweep).
+    /// How the input moves between samples: zoh (a D/A staircase), linear, bandlimited
+    /// (a continuous excitation sampled without aliasing, e.g. a multisine or sweep), or
+    /// auto (diagnosed under zoh; if the final model has the hysteresis inside the
+    /// mechanical feedback, the only block that sees the hold, it is refitted under each
+    /// and the one the data support best is kept).
     #[arg(long, default_value = "zoh")]
     pub hold: String,
+    /// The fewest RK4 sub-steps per sample of that integrator (more where the fitted mode
+    /// needs them): raise it to check that a result does not depend on the integration.
+    #[arg(long, default_value_t = MIN_SUBSTEPS)]
+    pub min_substeps: usize,
     /// Test record (CSV, same columns), never used by the diagnosis: baseline and final
     /// model are simulated from its input alone, from rest. Repeatable.
     #[arg(long)]
@@ -110,18 +123,31 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
         .model
         .clone()
         .unwrap_or_else(|| if a.proof { "bouc-wen-n1" } else { "bouc-wen" }.to_string());
-    let hold = Hold::parse(&a.hold).ok_or_else(|| {
-        Error::Input(format!(
-            "--hold {}: unknown; valid: zoh, linear, bandlimited",
-            a.hold
-        ))
-    })?;
+    let choose_hold = a.hold == "auto";
+    let hold = if choose_hold {
+        Hold::Zoh
+    } else {
+        Hold::parse(&a.hold).ok_or_else(|| {
+            Error::Input(format!(
+                "--hold {}: unknown; valid: zoh, linear, bandlimited, auto",
+                a.hold
+            ))
+        })?
+    };
+    if !(1..=64).contains(&a.min_substeps) {
+        return Err(Error::Input(format!(
+            "--min-substeps {}: expected 1 to 64",
+            a.min_substeps
+        )));
+    }
     let opts = Options {
         model,
         seed: a.seed,
         effects: effects(&a.effects)?,
         bootstrap: a.bootstrap,
         hold,
+        choose_hold,
+        min_substeps: a.min_substeps,
         validate_periodic: a.validate_periodic,
         suggest: a.suggest,
         ..Options::default()
@@ -166,6 +192,7 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
             delimiter: a.delimiter,
         },
         trim_start: a.trim_start,
+        holdout: a.holdout,
     };
     let out = a.out.unwrap_or_else(|| PathBuf::from("results/diagnose"));
     print!("{}", diagnose_files(&files, &opts, &out)?);

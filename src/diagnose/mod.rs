@@ -43,7 +43,7 @@ use crate::base::error::{Error, Result};
 use crate::base::standard_normal;
 use crate::data::recording::Recording;
 use crate::physics::structure::{
-    Context, Effect, Form, Hold, MAX_RECORDS, ParamSpec, Placement, Structure,
+    Context, Effect, Form, Hold, MAX_RECORDS, MIN_SUBSTEPS, ParamSpec, Placement, Structure,
 };
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
@@ -83,6 +83,10 @@ pub struct Options {
     pub pair_pool: usize,
     /// How the input moves between samples (for the feedback placement's integrator).
     pub hold: Hold,
+    /// Choose the hold from the data ([`choose_hold`]), starting from `hold`.
+    pub choose_hold: bool,
+    /// The fewest RK4 sub-steps per sample of that integrator.
+    pub min_substeps: usize,
     /// Offer `dynamics` with the hysteresis inside the mechanical feedback too.
     pub feedback: bool,
     /// The validation record is one period of a periodic steady state.
@@ -128,6 +132,8 @@ impl Default for Options {
             max_rounds: 4,
             pair_pool: 3,
             hold: Hold::Zoh,
+            choose_hold: false,
+            min_substeps: MIN_SUBSTEPS,
             feedback: true,
             validate_periodic: false,
             suggest: false,
@@ -254,8 +260,13 @@ pub struct Diagnosis {
     pub search_stop: String,
     /// Bootstrap scores of the battery under the fitted baseline, sorted.
     pub bootstrap_scores: Vec<f64>,
-    /// How the input moves between samples (`--hold`).
+    /// How the input moves between samples (`--hold`, or the one `--hold auto` kept).
     pub hold: String,
+    /// `--hold auto`: the final model refitted under each hold ([`choose_hold`]).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub hold_trials: Vec<HoldTrial>,
+    /// The fewest RK4 sub-steps per sample of the feedback placement's integrator.
+    pub min_substeps: usize,
     /// Top of the band the training drive excites ([`plausible::Scope::band_hz`]).
     pub excited_band_hz: f64,
     /// Free-run simulation on test records from their input alone (`--test`).
@@ -1589,6 +1600,67 @@ fn free_run(f: &Fitted, t: &TestSet) -> f64 {
     residual::rms(&e)
 }
 
+/// The final model under one hold (`--hold auto`).
+#[derive(Clone, Debug, Serialize)]
+pub struct HoldTrial {
+    pub hold: String,
+    pub train_rmse: f64,
+    pub validate_rmse: f64,
+    /// Training BIC plus the validation record's evidence: what candidates are ranked by.
+    pub evidence: f64,
+    pub kept: bool,
+}
+
+/// `--hold auto`: how the input moves between samples is a property of the recording
+/// set-up that only the integrator of the hysteresis inside the mechanical feedback sees,
+/// with the same parameters under every hold. So the final model `c` (fitted under
+/// `opts.hold`) is polished again under each other hold from its optimum, and the hold
+/// with the lowest training BIC plus validation evidence is kept; also the evaluations.
+/// The names were chosen under `opts.hold`: a placement that only another hold would
+/// have accepted is not found this way.
+fn choose_hold(c: Evaluated, d: &Data, opts: &Options) -> (Evaluated, Vec<HoldTrial>, u64) {
+    let start = c.fitted.structure.hold();
+    let mut used = 0;
+    let mut tried = vec![c];
+    for (k, hold) in [Hold::Zoh, Hold::Linear, Hold::Bandlimited]
+        .into_iter()
+        .enumerate()
+    {
+        if hold == start {
+            continue;
+        }
+        let st = tried[0].fitted.structure.with_hold(hold);
+        let g = refit::fit(
+            &st,
+            &d.ut,
+            &d.yt,
+            Some(&tried[0].fitted.theta),
+            None,
+            repolish_budget(opts),
+            opts.seed.wrapping_add(300 + k as u64),
+        );
+        let e = evaluate(g, d, opts);
+        used += e.fitted.evaluations;
+        tried.push(e);
+    }
+    let evidence = |e: &Evaluated| bic(&e.fitted, d.ut.len()) + e.validate_ic;
+    let best = (0..tried.len())
+        .min_by(|&a, &b| evidence(&tried[a]).total_cmp(&evidence(&tried[b])))
+        .unwrap_or(0);
+    let trials = tried
+        .iter()
+        .enumerate()
+        .map(|(i, e)| HoldTrial {
+            hold: e.fitted.structure.hold().name().into(),
+            train_rmse: e.fitted.rmse(d.ut.len()),
+            validate_rmse: e.validate_rmse,
+            evidence: evidence(e),
+            kept: i == best,
+        })
+        .collect();
+    (tried.swap_remove(best), trials, used)
+}
+
 /// Diagnoses `train` against `validate` (each at its own sampling interval).
 pub fn diagnose(train: &Recording, validate: &Recording, opts: &Options) -> Result<Diagnosis> {
     diagnose_with_tests(
@@ -1741,7 +1813,9 @@ pub fn diagnose_with_tests(
     if vj.several() {
         d.validation_parts = Some(vj.parts.clone());
     }
-    let ctx = Context::from_records(&inputs).with_hold(opts.hold);
+    let ctx = Context::from_records(&inputs)
+        .with_hold(opts.hold)
+        .with_min_substeps(opts.min_substeps);
     let (train_noise, train_settled) = (tj.noise, tj.settled);
     let (validate_noise, validate_settled) = (vj.noise, vj.settled);
     let noise = (0.5 * (train_noise * train_noise + validate_noise * validate_noise)).sqrt();
@@ -2371,6 +2445,13 @@ pub fn diagnose_with_tests(
         ));
     }
     search_stop.push_str(&exchange_note);
+    let mut hold_trials = Vec::new();
+    if opts.choose_hold && current.fitted.structure.placement() == Placement::Feedback {
+        let used;
+        (current, hold_trials, used) = choose_hold(current, &d, opts);
+        evaluations += used;
+        current_summary = summary(&current, &d, &boot, opts.seed);
+    }
     let free_runs: Vec<FreeRun> = tests
         .iter()
         .map(|t| FreeRun {
@@ -2444,7 +2525,9 @@ pub fn diagnose_with_tests(
         residual_structured: structured,
         search_stop,
         bootstrap_scores: boot,
-        hold: opts.hold.name().into(),
+        hold: current.fitted.structure.hold().name().into(),
+        hold_trials,
+        min_substeps: opts.min_substeps,
         excited_band_hz: d.scope.band_hz,
         tests: free_runs,
         seed: opts.seed,
@@ -2816,6 +2899,93 @@ mod tests {
 
     fn fitted(form: Form, values: &[(&str, f64)], dt: f64) -> Fitted {
         fitted_with(Effect::Dynamics, form, values, dt)
+    }
+
+    /// `--hold auto`: a restoring-force record driven by a band-limited multisine (written
+    /// under the band-limited hold), fitted under the zero-order hold, is refitted under each
+    /// hold and the band-limited one kept: it predicts the validation record far better.
+    #[test]
+    fn the_hold_a_record_was_excited_with_is_chosen() {
+        let dt = 1.0 / 750.0;
+        // Random-phase multisines, 5-150 Hz, one training and one validation.
+        let multisine = |n: usize, salt: u64| -> Vec<f64> {
+            let mut rng = TrialSeed::derive(salt, "hold", "phases", 0).rng(0);
+            let bins: Vec<(f64, f64)> = (1..n / 2)
+                .map(|k| k as f64 / (n as f64 * dt))
+                .filter(|f| (5.0..=150.0).contains(f))
+                .map(|f| (f, std::f64::consts::TAU * rng.random::<f64>()))
+                .collect();
+            (0..n)
+                .map(|k| {
+                    let t = k as f64 * dt;
+                    bins.iter()
+                        .map(|(f, p)| (std::f64::consts::TAU * f * t + p).sin())
+                        .sum::<f64>()
+                        * 0.2
+                })
+                .collect()
+        };
+        let (ut, uv) = (multisine(3000, 1), multisine(1500, 2));
+        let ctx = Context::from_training(&ut, dt).with_hold(Hold::Bandlimited);
+        let truth = Structure::with_forms(
+            &[(Effect::Dynamics, Form::OneMode)],
+            Some(1.0),
+            ctx,
+            Placement::Feedback,
+        );
+        let theta = theta_with(
+            &truth,
+            &[
+                ("fb_log10_hz", 36f64.log10()),
+                ("fb_log10_zeta", 0.02f64.log10()),
+                ("fb_r", 0.5),
+                ("fb_b", 0.5),
+                ("fb_c", -1.0),
+            ],
+        );
+        let coef: Vec<f64> = truth
+            .linear_names()
+            .iter()
+            .map(|n| if n == "scale" { 1.0 } else { 0.0 })
+            .collect();
+        let noisy = |u: &[f64], salt: u64| -> Vec<f64> {
+            let (y, _) = truth.simulate(&theta, &coef, u);
+            let mut rng = TrialSeed::derive(salt, "hold", "noise", 0).rng(0);
+            y.iter()
+                .map(|v| v + 1e-4 * standard_normal(&mut rng))
+                .collect()
+        };
+        let (yt, yv) = (noisy(&ut, 3), noisy(&uv, 4));
+        let data = Data::new(ut.clone(), yt, uv, yv, false, dt);
+        let opts = Options {
+            model: "bouc-wen-n1".into(),
+            ..Options::default()
+        };
+        let zoh = truth.with_hold(Hold::Zoh);
+        let fit = refit::fit(
+            &zoh,
+            &data.ut,
+            &data.yt,
+            Some(&theta),
+            None,
+            repolish_budget(&opts),
+            1,
+        );
+        let (kept, trials, used) = choose_hold(evaluate(fit, &data, &opts), &data, &opts);
+        assert!(used > 0);
+        let names: Vec<&str> = trials.iter().map(|t| t.hold.as_str()).collect();
+        assert_eq!(names, ["zoh", "linear", "bandlimited"]);
+        assert_eq!(
+            kept.fitted.structure.hold(),
+            Hold::Bandlimited,
+            "{trials:?}"
+        );
+        assert!(trials[2].kept && !trials[0].kept && !trials[1].kept);
+        assert!(
+            trials[2].validate_rmse < 0.5 * trials[0].validate_rmse,
+            "{trials:?}"
+        );
+        assert_eq!(kept.validate_rmse, trials[2].validate_rmse);
     }
 
     /// A slow creep (gain 0.75, 14 s) on a 6 s unipolar record, the hysteresis from a

@@ -17,6 +17,20 @@ pub struct Files {
     pub columns: Columns,
     pub read: ReadOptions,
     pub trim_start: f64,
+    /// Instead of validation files: this share of every training record's tail, held out
+    /// (never fitted) as its validation record.
+    pub holdout: Option<f64>,
+}
+
+/// Where `n` samples split for a held-out tail of `fraction` (0 < fraction < 1): the
+/// first index of the tail.
+pub fn holdout_split(n: usize, fraction: f64) -> Result<usize> {
+    if !(fraction > 0.0 && fraction < 1.0) {
+        return Err(Error::Input(format!(
+            "--holdout {fraction}: expected the share of each training record held out for validation, between 0 and 1 (e.g. 0.2)"
+        )));
+    }
+    Ok(n - ((n as f64 * fraction).round() as usize).clamp(1, n - 1))
 }
 
 fn read(path: &Path, columns: &Columns, read: &ReadOptions) -> Result<Recording> {
@@ -59,10 +73,18 @@ fn other_inputs(
         .collect()
 }
 
+/// `x` (0..1) as a percentage with at most one decimal.
+fn percent(x: f64) -> String {
+    let p = (1000.0 * x).round() / 10.0;
+    format!("{p} %")
+}
+
 /// Diagnoses the files with `opts`, writes the report to `out`; returns the text to print.
 pub fn diagnose_files(f: &Files, opts: &Options, out: &Path) -> Result<String> {
-    if f.train.is_empty() || f.validate.is_empty() {
-        return Err(Error::Input("--train and --validate are required".into()));
+    if f.train.is_empty() || (f.validate.is_empty() == f.holdout.is_none()) {
+        return Err(Error::Input(
+            "--train and one of --validate or --holdout are required".into(),
+        ));
     }
     if !(f.trim_start.is_finite() && f.trim_start >= 0.0) {
         return Err(Error::Input(format!(
@@ -77,7 +99,20 @@ pub fn diagnose_files(f: &Files, opts: &Options, out: &Path) -> Result<String> {
             .map(|p| read(p, columns, ropts)?.trim_start(f.trim_start))
             .collect()
     };
-    let (train, validate) = (records(&f.train)?, records(&f.validate)?);
+    let (mut train, mut validate) = (records(&f.train)?, records(&f.validate)?);
+    // The held-out tails, and where each training file splits.
+    let mut splits = Vec::new();
+    if let Some(fraction) = f.holdout {
+        for r in &mut train {
+            let k = holdout_split(r.len(), fraction)?;
+            let (mut head, mut tail) = (r.slice(0..k)?, r.slice(k..r.len())?);
+            head.name = format!("{} (first {})", r.name, percent(1.0 - fraction));
+            tail.name = format!("{} (last {}, held out)", r.name, percent(fraction));
+            *r = head;
+            splits.push(k);
+            validate.push(tail);
+        }
+    }
     let mut tests = Vec::new();
     for (paths, periodic) in [(&f.test, false), (&f.test_periodic, true)] {
         for p in paths {
@@ -88,11 +123,24 @@ pub fn diagnose_files(f: &Files, opts: &Options, out: &Path) -> Result<String> {
         }
     }
     let mut d = diagnose_with_tests(&train, &validate, &tests, opts)?;
-    // Columns every validation file holds, concatenated as the records are.
-    let mut files = f
-        .validate
-        .iter()
-        .map(|v| other_inputs(v, columns, ropts, f.trim_start));
+    // Columns every validation file (or held-out tail) holds, concatenated as the records
+    // are.
+    let tails = f.train.iter().zip(&splits).map(|(p, &k)| {
+        let mut o = other_inputs(p, columns, ropts, f.trim_start);
+        for (_, x) in &mut o {
+            x.drain(..k.min(x.len()));
+        }
+        o
+    });
+    let mut files: Box<dyn Iterator<Item = _>> = if f.holdout.is_some() {
+        Box::new(tails)
+    } else {
+        Box::new(
+            f.validate
+                .iter()
+                .map(|v| other_inputs(v, columns, ropts, f.trim_start)),
+        )
+    };
     let mut others = files.next().unwrap_or_default();
     for here in files {
         others.retain_mut(|(n, x)| match here.iter().find(|h| &h.0 == n) {

@@ -156,6 +156,26 @@ pub fn text(d: &Diagnosis) -> String {
             parts.join(", ")
         );
     }
+    if !d.hold_trials.is_empty() {
+        let parts: Vec<String> = d
+            .hold_trials
+            .iter()
+            .map(|h| {
+                format!(
+                    "{} {} (validation RMSE {}{u})",
+                    h.hold,
+                    sig(h.evidence, 6),
+                    sig(h.validate_rmse, 3)
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "hold chosen by the data (training BIC + validation evidence, lowest kept): {}; kept {}",
+            parts.join(", "),
+            d.hold
+        );
+    }
     let fm = &d.final_model;
     if d.left_out.is_empty() {
         let _ = writeln!(

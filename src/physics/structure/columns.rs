@@ -352,7 +352,7 @@ impl Structure {
                 *v = l.step(*v);
             }
         }
-        let m = osc.substeps(dt);
+        let m = osc.substeps(dt, ctx.min_substeps);
         let mut fine = upsample(&x, ctx.hold, m);
         if self.has(Effect::InputLag) && sh.lag > 0.0 {
             let mut lp = LowPass::new(sh.lag, dt / (2 * m) as f64);

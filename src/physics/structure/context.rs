@@ -16,6 +16,8 @@ pub struct Context {
     /// How the input moves between samples, for the feedback placement's integrator (the
     /// blocks of the chain are discretised for a zero-order hold).
     pub hold: Hold,
+    /// The fewest RK4 sub-steps per sample of that integrator ([`MIN_SUBSTEPS`]).
+    pub min_substeps: usize,
 }
 
 /// Where the `dynamics` mode sits relative to the hysteresis.
@@ -65,6 +67,7 @@ impl Context {
             rate_ref: ms.sqrt().max(1e-300),
             t_ref: (n as f64 * dt).max(dt),
             hold: Hold::Zoh,
+            min_substeps: MIN_SUBSTEPS,
         }
     }
 
@@ -98,6 +101,12 @@ impl Context {
     /// The same scales with inputs moving between samples by `hold`.
     pub fn with_hold(mut self, hold: Hold) -> Context {
         self.hold = hold;
+        self
+    }
+
+    /// The same with at least `min` RK4 sub-steps per sample.
+    pub fn with_min_substeps(mut self, min: usize) -> Context {
+        self.min_substeps = min;
         self
     }
 }

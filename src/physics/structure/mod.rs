@@ -39,6 +39,7 @@
 use super::bouc_wen::{BoucWenKernel, BoucWenParams, cost_cap};
 use super::linear::{LowPass, Mode};
 pub use super::restoring::Hold;
+pub use super::restoring::MIN_SUBSTEPS;
 use super::restoring::{Oscillator, upsample};
 use std::sync::Arc;
 
@@ -552,6 +553,26 @@ impl Structure {
                     .unwrap_or(s.neutral)
             })
             .collect()
+    }
+
+    /// The same model (same parameters) with inputs moving between samples by `hold`, on
+    /// every record.
+    pub fn with_hold(&self, hold: Hold) -> Structure {
+        let one = Structure::with_forms(
+            &self.parts(),
+            self.fixed_n,
+            self.ctx.with_hold(hold),
+            self.placement,
+        );
+        match self.records() {
+            Some(parts) => one.on_records(parts),
+            None => one,
+        }
+    }
+
+    /// How the input moves between samples.
+    pub fn hold(&self) -> Hold {
+        self.ctx.hold
     }
 
     /// The same model for a record sampled every `dt`: the data scales of the training

@@ -935,7 +935,7 @@ fn feedback_placement_is_the_physical_restoring_force_model() {
         n: 1.3,
     };
     let x: Vec<f64> = u.iter().map(|v| v / ctx.u_ref).collect();
-    let fine = upsample(&x, Hold::Linear, osc.substeps(dt));
+    let fine = upsample(&x, Hold::Linear, osc.substeps(dt, MIN_SUBSTEPS));
     let yi = osc.respond(&fine, dt, x[0], 0.0).unwrap();
     let y: Vec<f64> = yi.iter().map(|v| a * v + 3e-5).collect();
     let lf = st.fit_linear(&theta, &u, &y);
