@@ -85,7 +85,7 @@ def diagnose(ctx, name, args, train):
     out = ctx.scratch / f"boucwen-{name}"
     extra = SMALL_EXTRA if ctx.small else ["--test", str(d / SWEEP)]
     # `ctx.reuse`: an earlier run's output in the scratch folder is read, not run again.
-    if not (getattr(ctx, "reuse", False) and (out / "diagnosis.json").is_file()):
+    if not (getattr(ctx, "reuse", False) is True and (out / "diagnosis.json").is_file()):
         ctx.optbench(
             "diagnose", "--train", str(train), "--test-periodic", str(d / MULTISINE),
             "--columns", COLUMNS, *args, *extra, "--out", str(out),
@@ -143,6 +143,21 @@ def params(ctx, diags):
             rows.append(f"| fitted, {name} | " + " | ".join(f"{p[k]:.5g}" for k in keys) + " |")
     rows.append("| benchmark truth (README.txt) | " + " | ".join(f"{v:.5g}" for v in true) + " |")
     return "\n".join(rows) + "\n"
+
+
+FRAGMENTS = ["boucwen-readme", "boucwen-headline", "boucwen-ablation", "boucwen-compare",
+             "boucwen-params"]
+
+
+def collect(ctx):
+    """docs_gen's interface: the fragments are the data (each is built from the runs'
+    diagnosis.json and RESULTS.md by generate())."""
+    ctx.need_data(BENCH, TRAIN)
+    return {"fragments": generate(ctx)}
+
+
+def render(data):
+    return data["fragments"]
 
 
 def generate(ctx):

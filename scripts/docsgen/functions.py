@@ -2,6 +2,7 @@
 30-D, strong baselines), its report, a second seed, and the dissertation's own values read
 from its text."""
 
+import math
 import re
 
 from docsgen._util import (first_table, markdown_table, parse_table, minus, read_csv,
@@ -110,8 +111,18 @@ def ranks(d, opts):
 
 def friedman_text(d):
     f = d["friedman"]
-    return (f"Friedman chi2 = {f['statistic']:.1f}, df = {f['df']}, "
-            f"p = {sig(f['p_value'], 2)}")
+    method = f.get("method", "chi-square")
+    if isinstance(method, dict):   # {"Permutation": {"resamples": N}}
+        n = next(iter(method.values()))["resamples"]
+        e = math.log10(n)
+        method = f"permutation, 10^{e:.0f}" if e == round(e) else f"permutation, {n}"
+    elif method == "Exact":
+        method = "exact permutation"
+    text = (f"Friedman chi2 = {f['statistic']:.1f}, df = {f['df']}, p = {sig(f['p_value'], 2)} "
+            f"({method})")
+    if "p_chi2" in f:
+        text += f"; the chi-square approximation, rough for few objectives, gives {sig(f['p_chi2'], 2)}"
+    return text
 
 
 def render(d):

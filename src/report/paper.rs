@@ -514,7 +514,9 @@ pub fn paper_table_markdown(t: &crate::pipeline::suite::PaperTable, a: &Analysis
         t.title,
         t.reference
             .as_deref()
-            .map_or("the dissertation's single run".to_string(), |r| format!("the {r} value"))
+            .map_or("the dissertation's single run".to_string(), |r| format!(
+                "the {r} value"
+            ))
     );
     layout_markdown(t, &heading, |cell| {
         paper_cell(a, cell, t.value.as_ref())
