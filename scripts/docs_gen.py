@@ -60,6 +60,8 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+# Modules import this file as `docs_gen` (for Skip); run as a script it is `__main__`.
+sys.modules.setdefault("docs_gen", sys.modules[__name__])
 sys.path.insert(0, str(ROOT / "scripts"))
 STORE = ROOT / "docs" / "generated"
 FIGURES = ROOT / "docs" / "figures"
