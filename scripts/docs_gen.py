@@ -155,6 +155,11 @@ def markers():
             if m.group(1) in found:
                 errors.append(f"{f.relative_to(ROOT)}: gen:{m.group(1)} appears twice")
             found[m.group(1)] = (f, m.group(2))
+        for i, line in enumerate(text.splitlines(), 1):
+            if re.match(r"<!-- gen:\S+ -->\S", line):
+                errors.append(f"{f.relative_to(ROOT)}:{i}: text follows an opening marker "
+                              "that starts the line: CommonMark reads such a line as raw "
+                              "HTML (put the marker on a line of its own, or after text)")
         paired = {m.group(1) for m in MARKER_RE.finditer(text)}
         for m in OPEN_RE.finditer(text):
             if m.group(1) not in paired:
@@ -165,8 +170,15 @@ def markers():
 
 def place(old, new):
     """New text between markers, in the block or inline form the old text had."""
-    if old.startswith("\n"):
+    if old.startswith("\n") and old.endswith("\n"):
         return "\n" + new.strip("\n") + "\n"
+    if old.startswith("\n"):
+        # The opening marker on a line of its own, the text ending in the closing marker:
+        # a line that starts with `<!--` is an HTML block in CommonMark, so text may not
+        # follow an opening marker that starts a line.
+        if "\n" in new.strip("\n"):
+            raise ValueError("a multi-line fragment needs block markers (on their own lines)")
+        return "\n" + new.strip("\n")
     if "\n" in new.strip("\n"):
         raise ValueError("a multi-line fragment needs block markers (on their own lines)")
     return new.strip("\n")
