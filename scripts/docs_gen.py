@@ -59,6 +59,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from check_docs import markdown_files as doc_files
+
 ROOT = Path(__file__).resolve().parent.parent
 # Modules import this file as `docs_gen` (for Skip); run as a script it is `__main__`.
 sys.modules.setdefault("docs_gen", sys.modules[__name__])
@@ -142,8 +144,6 @@ def modules():
     return {n: importlib.import_module(f"docsgen.{n}") for n in names}
 
 
-def doc_files():
-    return [ROOT / "README.md"] + sorted((ROOT / "docs").rglob("*.md"))
 
 
 def markers():

@@ -234,7 +234,7 @@ def generate(ctx):
     compare += [f"| {m} | {ms} | {sw} | {src} |" for m, ms, sw, src in published(ctx)]
     fb = "dynamics(feedback)" in naive["final"]["model"]
     readme = (
-        f"On the Bouc-Wen benchmark `optbench diagnose`, run without prior knowledge of it, "
+        "On the Bouc-Wen benchmark `optbench diagnose`, run without prior knowledge of it, "
         + ("puts the hysteresis inside the mechanical feedback" if fb else f"ends at {naive['final']['model']}")
         + f" and misses the multisine test set by {sci(nm)} m (the best published black box: "
         f"{sci(bb_ms)} m); with the hold, the exponent and the validation record chosen by "

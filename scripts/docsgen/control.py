@@ -3,9 +3,10 @@ table, and two single `optbench control` runs the chapter quotes."""
 
 import json
 import math
+import statistics
 import tomllib
 
-from docsgen._util import first_table, markdown_table, parse_table, read_json, sig
+from docsgen._util import first_table, parse_table, read_json, sig
 
 SUITE = "suites/control.toml"
 SMALL = ["--trials", "3", "--budget", "750"]
@@ -67,6 +68,7 @@ def collect(ctx):
         "titles": {t: (out / "tables" / f"{t}.md").read_text().split("\n\n")[0]
                    for t in ("section4.2.1", "table4.1")},
         "pairwise_head": report[report.index("**Pairwise comparisons**"):].split("\n\n")[0],
+        "pairwise_table": first_table(report[report.index("**Pairwise comparisons**"):]),
         "pairwise": pairs,
         "models": models,
         "published": published,
@@ -74,12 +76,6 @@ def collect(ctx):
         "figures": {name: ctx.figure(out / "figures" / src, name)
                     for name, src in FIGURES.items()},
     }
-
-
-def median(xs):
-    s = sorted(xs)
-    n = len(s)
-    return (s[n // 2] + s[(n - 1) // 2]) / 2
 
 
 def render(d):
@@ -110,7 +106,7 @@ def render(d):
     f["control-steady"] = (
         f"After the first second the medians are between {100 * (1 - min(ratios)):.0f} % "
         f"lower and {100 * (max(ratios) - 1):.0f} % higher (`tables/table4.1-steady.md`).")
-    f["control-pairwise"] = d["pairwise_head"] + "\n\n" + _pair_table(d)
+    f["control-pairwise"] = d["pairwise_head"] + "\n\n" + d["pairwise_table"]
 
     imc = {r: cell("twin", "IMC-RBF", r) for r in REFS}
     pid = {r: cell("twin", "PID-tuned", r) for r in REFS}
@@ -118,7 +114,7 @@ def render(d):
     pt = {r: pair("twin", r, "PID-tuned") for r in REFS}
     wins = pt["sweep-1-2hz"]["first wins"]
     k, m = (int(x) for x in wins.split("/"))
-    sign_p = min(1.0, 2 * sum(_binom(m, i) for i in range(k, m + 1)) / 2 ** m)
+    sign_p = min(1.0, 2 * sum(math.comb(m, i) for i in range(k, m + 1)) / 2 ** m)
     fixed = {r: cell("twin", "RBF-fixed-sensitivity", r) for r in REFS}
     pf = {r: pair("twin", r, "RBF-fixed-sensitivity") for r in REFS}
     floor = fails("twin", "IMC-RBF-floor")
@@ -129,7 +125,7 @@ def render(d):
     pub12 = pub["IMC-RBF/twin/sweep-1-2hz"]
     pub110 = pub["IMC-RBF/twin/sweep-1-10hz"]
     setting = {m["mode"]: m for m in d["models"].values() if m["twin"] in ("", "default")}
-    one_free = median(setting["one-step"]["free_run"])
+    one_free = statistics.median(setting["one-step"]["free_run"])
     pid_nm = d["runs"]["pid_no_mode"]["metrics"]["rmse_mm"]
     ratio = {r: float(pt[r]["ratio"]) for r in REFS}
     pw = {r: pt[r]["p (Wilcoxon)"] for r in REFS}
@@ -218,15 +214,3 @@ def render(d):
         "large, but with the divergent trials counted the paired test does not establish "
         "them either." if float(pw["sweep-1-2hz"]) >= 0.05 else "")
     return f
-
-
-def _pair_table(d):
-    rows = d["pairwise"]
-    head = list(rows[0])
-    return markdown_table(head, [[r[h] for h in head] for r in rows],
-                          right=[False, False, False] + [True] * (len(head) - 3))
-
-
-def _binom(n, k):
-    return math.comb(n, k)
-

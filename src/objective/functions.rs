@@ -291,6 +291,11 @@ impl ExpDecay {
     }
 }
 
+/// `J = ½ Σ r²`, the cost of a residual vector.
+fn half_square(r: &[f64]) -> f64 {
+    0.5 * r.iter().map(|v| v * v).sum::<f64>()
+}
+
 impl Objective for ExpDecay {
     fn name(&self) -> &str {
         "exp-decay"
@@ -301,8 +306,7 @@ impl Objective for ExpDecay {
     }
 
     fn evaluate(&self, x: &[f64]) -> f64 {
-        let r = self.residual_vector(x);
-        0.5 * r.iter().map(|v| v * v).sum::<f64>()
+        half_square(&self.residual_vector(x))
     }
 
     /// One pass over the samples (charged `1 + d` all the same).
@@ -315,7 +319,7 @@ impl Objective for ExpDecay {
             g[1] += ri * x[0] * t * e;
             g[2] -= ri;
         }
-        Some(0.5 * r.iter().map(|v| v * v).sum::<f64>())
+        Some(half_square(&r))
     }
 
     fn has_gradient(&self) -> bool {
@@ -324,7 +328,7 @@ impl Objective for ExpDecay {
 
     fn residuals(&self, x: &[f64], r: &mut Vec<f64>) -> Option<f64> {
         *r = self.residual_vector(x);
-        Some(0.5 * r.iter().map(|v| v * v).sum::<f64>())
+        Some(half_square(r))
     }
 }
 

@@ -18,7 +18,7 @@
 //! ~1e-14 relative), using 2 P(Z > z) = P(chi2_1 > z^2) for z >= 0.
 
 use super::friedman::{FriedmanMethod, permutation_p};
-use super::rank::average_ranks;
+use super::rank::{average_ranks, tie_term};
 use serde::{Deserialize, Serialize};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
@@ -59,13 +59,7 @@ pub fn mann_whitney(a: &[f64], b: &[f64]) -> MannWhitney {
         (2.0 * exact_cdf((mn - u) as usize, n1, n2)).min(1.0)
     } else {
         let n = (n1 + n2) as f64;
-        let tie_term: f64 = ties
-            .iter()
-            .map(|&t| {
-                let t = t as f64;
-                t * t * t - t
-            })
-            .sum();
+        let tie_term = tie_term(&ties);
         let var = mn / 12.0 * ((n + 1.0) - tie_term / (n * (n - 1.0)));
         // scipy: z = (u - mn/2 - 0.5) / sqrt(var) (continuity correction), p = 2 sf(z),
         // clipped to 1. For z > 0, 2 sf(z) = P(chi2_1 > z^2), which statrs computes
@@ -224,13 +218,7 @@ pub fn friedman(blocks: &[Vec<f64>]) -> Friedman {
             *s += r;
         }
         all_ranks.push(ranks);
-        ties += groups
-            .iter()
-            .map(|&t| {
-                let t = t as f64;
-                t * (t * t - 1.0)
-            })
-            .sum::<f64>();
+        ties += tie_term(&groups);
     }
     let (n, kf) = (blocks.len() as f64, k as f64);
     let c = 1.0 - ties / (kf * (kf * kf - 1.0) * n);
@@ -327,13 +315,7 @@ pub fn wilcoxon(a: &[f64], b: &[f64]) -> Wilcoxon {
         (sign_flip_p(&ranks, r_plus), PairedMethod::Permutation)
     } else {
         let nf = n as f64;
-        let tie_term: f64 = ties
-            .iter()
-            .map(|&t| {
-                let t = t as f64;
-                t * t * t - t
-            })
-            .sum();
+        let tie_term = tie_term(&ties);
         let se = ((nf * (nf + 1.0) * (2.0 * nf + 1.0) - tie_term / 2.0) / 24.0).sqrt();
         let z = (r_plus - total / 2.0) / se;
         // 2 sf(|z|) = P(chi2_1 > z^2), accurate in the far tail.

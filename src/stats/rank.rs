@@ -31,6 +31,18 @@ pub(crate) fn average_ranks(values: &[f64]) -> (Vec<f64>, Vec<usize>) {
     (ranks, groups)
 }
 
+/// `Σ (t³ - t)` over the tie groups of [`average_ranks`]: the tie correction of every
+/// rank test's variance (0 without ties).
+pub(crate) fn tie_term(groups: &[usize]) -> f64 {
+    groups
+        .iter()
+        .map(|&t| {
+            let t = t as f64;
+            t * t * t - t
+        })
+        .sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
