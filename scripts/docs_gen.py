@@ -212,13 +212,32 @@ def write_docs(rendered):
 NUMBER_RE = re.compile(r"(?<![\w./#-])[-−]?\d+(?:[.,]\d+)*(?:e[-+]?\d+)?(?:\s?%|x\b)?")
 
 
+# A reference to a numbered part of the dissertation or the docs, or a name that is a number
+# (a master seed, a blind case), not a value.
+REFERENCE_RE = re.compile(
+    r"\b(?:Tables?|Figs?\.|Figures?|eqs?\.|[Ss]ections?|[Cc]hapters?|(?:master )?seeds?|"
+    r"cases?)\s+\**\d+(?:\.\d+)*\**"
+    r"(?:\s*(?:[-/,–]|and)\s*\**\d+(?:\.\d+)*\**)*")
+INPUTS = ROOT / "scripts" / "docsgen" / "inputs.toml"
+
+
 def audit():
     """Lines with numbers outside markers that look like measurements (a decimal point, an
-    exponent, a percent, a ratio or three digits and more), per file, with a count."""
-    total = 0
+    exponent, a percent, a ratio or three digits and more), per file, with a count. Numbers
+    that are inputs (a suite's setting, a constant of the code, a version) are listed with
+    their reason in scripts/docsgen/inputs.toml and pass. A reason that starts with a file
+    of the repository and a colon ("suites/functions.toml: the budget") is checked: the
+    number (without thousands commas or a percent sign) must occur in that file. An entry no
+    longer in its doc file is an error too, so the list cannot hide a number that has since
+    changed. Returns the number of problems."""
+    import tomllib
+    inputs = tomllib.loads(INPUTS.read_text()) if INPUTS.exists() else {}
+    total, used = 0, set()
     for f in doc_files():
         if re.fullmatch(r"blind-proof-\d+\.md", f.name):
             continue   # a blind-proof report, written whole by scripts/blind_proof/run.py
+        rel = str(f.relative_to(ROOT))
+        allowed = inputs.get(rel, {})
         text = MARKER_RE.sub("", f.read_text())
         text = re.sub(r"```.*?```", "", text, flags=re.S)
         hits = []
@@ -226,15 +245,34 @@ def audit():
             if line.startswith("#"):
                 continue
             plain = re.sub(r"`[^`]*`|\]\([^)]*\)|<!--.*?-->", "", line)
+            plain = REFERENCE_RE.sub("", plain)
             nums = [m.group(0) for m in NUMBER_RE.finditer(plain)
                     if re.search(r"[.,e%x]", m.group(0)) or len(m.group(0)) >= 3]
+            used.update((rel, n) for n in nums if n in allowed)
+            nums = [n for n in nums if n not in allowed]
             if nums:
                 hits.append(f"  {' '.join(nums[:6])}: {line.strip()[:90]}")
         if hits:
-            print(f"{f.relative_to(ROOT)}: {len(hits)} line(s)")
+            print(f"{rel}: {len(hits)} line(s)")
             print("\n".join(hits))
             total += len(hits)
-    print(f"{total} line(s) with numbers outside gen markers")
+    stale = [(f, n) for f, t in inputs.items() for n in t if (f, n) not in used]
+    for f, n in stale:
+        print(f"{INPUTS.relative_to(ROOT)}: [\"{f}\"] \"{n}\" is no longer in that file: "
+              "remove the entry")
+    for f, t in inputs.items():
+        for n, why in t.items():
+            src = why.split(":", 1)[0]
+            if ":" not in why or not (ROOT / src).is_file():
+                continue
+            bare = re.sub(r"\s?%$|x$", "", n.replace(",", "").replace("−", "-"))
+            text = re.sub(r"(?<=\d)_(?=\d)", "", (ROOT / src).read_text())
+            if not re.search(rf"(?<![\w.]){re.escape(bare)}(?![\w.]?\d)", text):
+                print(f"{INPUTS.relative_to(ROOT)}: [\"{f}\"] \"{n}\": {bare} is not in {src}")
+                stale.append((f, n))
+    print(f"{total} line(s) with numbers outside gen markers and not listed as inputs; "
+          f"{len(stale)} stale input entr{'y' if len(stale) == 1 else 'ies'}")
+    return total + len(stale)
 
 
 def shape(x):
@@ -320,8 +358,7 @@ def main():
                for f in owner if f not in found]
 
     if a.audit:
-        audit()
-        sys.exit(0)
+        sys.exit(1 if audit() else 0)
     if a.list:
         for n, m in mods.items():
             print(n)
