@@ -30,6 +30,24 @@ def default_bin():
     return os.environ.get("OPTBENCH_BIN") or os.path.join(REPO, "target", "release", "optbench")
 
 
+def binary_commit(binary):
+    """The commit the binary was built from, as far as the checkout can tell: HEAD, marked
+    when the working tree differs from it or the binary is older than HEAD's commit."""
+    try:
+        git = ["git", "-C", REPO]
+        head = subprocess.run(git + ["rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, check=True).stdout.strip()
+        dirty = subprocess.run(git + ["status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, check=True).stdout.strip()
+        when = int(subprocess.run(git + ["log", "-1", "--format=%ct"], capture_output=True,
+                                  text=True, check=True).stdout.strip())
+    except (OSError, subprocess.CalledProcessError, ValueError):
+        return None
+    notes = (["with uncommitted changes"] if dirty else []) + \
+        (["binary older than this commit"] if os.path.getmtime(binary) < when else [])
+    return {"commit": head, "notes": notes}
+
+
 def run_case(case_dir, binary, extra, force):
     out = os.path.join(case_dir, "diagnosis")
     dj = os.path.join(out, "diagnosis.json")
@@ -99,6 +117,8 @@ def main(argv=None):
         results.append({"id": os.path.basename(d), "truth": json.load(open(os.path.join(d, "truth.json"))),
                         "diagnosis": diag, "wall_s": wall})
     s = score.score(results)
+    if not a.score_only:
+        s["binary"] = binary_commit(a.optbench)
     md = score.markdown(s)
     if a.report:
         with open(a.report, "w") as fh:

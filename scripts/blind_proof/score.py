@@ -126,10 +126,13 @@ def _num(x, f="{:.2f}"):
 
 
 def markdown(s, title="Blind proof of optbench diagnose"):
+    b = s.get("binary")
     L = [f"# {title}", "", f"Cases: {s['cases']}, scored: {s['scored']}"
-         + (f", missing: {', '.join(s['missing'])}" if s["missing"] else ""), "",
-         "Exact match = the named set equals the truth set. Intervals: Wilson 95 %.", "",
-         "| group | exact match |", "|---|---|"]
+         + (f", missing: {', '.join(s['missing'])}" if s["missing"] else ""), ""]
+    if b:
+        L += [f"Binary: commit `{b['commit']}`" + "".join(f" ({n})" for n in b["notes"]), ""]
+    L += ["Exact match = the named set equals the truth set. Intervals: Wilson 95 %.", "",
+          "| group | exact match |", "|---|---|"]
     for e in EFFECTS:
         L.append(f"| {e} (single) | {_fmt(s['per_effect'][e])} |")
     L += [f"| **all singles** | {_fmt(s['singles'])} |", f"| **pairs** | {_fmt(s['pairs'])} |",
