@@ -126,7 +126,7 @@ class TestSimulator(unittest.TestCase):
     def test_size_zero_is_plain(self):
         fs, M, N = 1000.0, 8, 2001
         rng = np.random.default_rng(3)
-        st, fine, u = sim_signal = gen.signals.make_command(rng, "multisine", N, fs, M, "unipolar")
+        st, fine, u = gen.signals.make_command(rng, "multisine", N, fs, M, "unipolar")
         consts = {"vref": sim.GAIN * 4.65, "rate_norm": 100.0}
         for hold in ["zoh", "linear", "bandlimited"]:
             cmd = sim.fine_command(u, M, hold, fine)
