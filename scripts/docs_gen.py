@@ -267,7 +267,7 @@ def audit():
                 continue
             bare = re.sub(r"\s?%$|x$", "", n.replace(",", "").replace("−", "-"))
             text = re.sub(r"(?<=\d)_(?=\d)", "", (ROOT / src).read_text())
-            if not re.search(rf"(?<![\w.]){re.escape(bare)}(?![\w.]?\d)", text):
+            if not re.search(rf"(?<![\w.]){re.escape(bare)}(?:\.0+)?(?![\w.]*\d)", text):
                 print(f"{INPUTS.relative_to(ROOT)}: [\"{f}\"] \"{n}\": {bare} is not in {src}")
                 stale.append((f, n))
     print(f"{total} line(s) with numbers outside gen markers and not listed as inputs; "
