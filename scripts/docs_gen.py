@@ -227,7 +227,8 @@ def audit():
     that are inputs (a suite's setting, a constant of the code, a version) are listed with
     their reason in scripts/docsgen/inputs.toml and pass. A reason that starts with a file
     of the repository and a colon ("suites/functions.toml: the budget") is checked: the
-    number (without thousands commas or a percent sign) must occur in that file. An entry no
+    number (without thousands commas; a percentage also as its fraction) must occur in that
+    file. An entry no
     longer in its doc file is an error too, so the list cannot hide a number that has since
     changed. Returns the number of problems."""
     import tomllib
@@ -267,7 +268,9 @@ def audit():
                 continue
             bare = re.sub(r"\s?%$|x$", "", n.replace(",", "").replace("−", "-"))
             text = re.sub(r"(?<=\d)_(?=\d)", "", (ROOT / src).read_text())
-            if not re.search(rf"(?<![\w.]){re.escape(bare)}(?:\.0+)?(?![\w.]*\d)", text):
+            forms = [bare] + ([repr(float(bare) / 100)] if n.endswith("%") else [])
+            if not any(re.search(rf"(?<![\w.]){re.escape(b)}(?:\.0+)?(?![\w.]*\d)", text)
+                       for b in forms):
                 print(f"{INPUTS.relative_to(ROOT)}: [\"{f}\"] \"{n}\": {bare} is not in {src}")
                 stale.append((f, n))
     print(f"{total} line(s) with numbers outside gen markers and not listed as inputs; "
