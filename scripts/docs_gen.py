@@ -6,7 +6,7 @@
     python3 scripts/docs_gen.py --check --full [--only ...]    # full size, by hand: rerun, compare
     python3 scripts/docs_gen.py --render [--only MODULE ...]  # rewrite from the stored data only
     python3 scripts/docs_gen.py --list                         # modules, fragments, where they sit
-    python3 scripts/docs_gen.py --audit                        # numbers outside markers, per line
+    python3 scripts/docs_gen.py --audit                        # numbers outside markers: CI too
 
 Generated text sits between marker comments, as a block
 
@@ -41,12 +41,18 @@ exactly (outside VOLATILE): runs are seeded, so a difference is a changed result
 Figures are copied into docs/figures by `--write`; the data holds their SHA-256, so a full
 check also catches a changed figure.
 
+`--audit` (also in CI) fails on any number outside markers, in the docs or in the prose a
+module's render() types, that is not an input listed with its reason in
+scripts/docsgen/inputs.toml (a suite's setting, a constant of the code, a test's threshold);
+a reason naming a file is checked against that file.
+
 Needs the release binary (`cargo build --release`); the data folder from $OPTBENCH_DATA
 (default ../shared/data): modules that need it and find it absent say so and are skipped.
 Standard library only (Python 3.11+).
 """
 
 import argparse
+import ast
 import hashlib
 import importlib
 import json
@@ -221,23 +227,26 @@ REFERENCE_RE = re.compile(
 INPUTS = ROOT / "scripts" / "docsgen" / "inputs.toml"
 
 
-def audit():
+def audit(root=None, files=None):
     """Lines with numbers outside markers that look like measurements (a decimal point, an
-    exponent, a percent, a ratio or three digits and more), per file, with a count. Numbers
+    exponent, a percent, a ratio or three digits and more), per file, with a count, and the
+    same in the text the modules' render functions write. Numbers
     that are inputs (a suite's setting, a constant of the code, a version) are listed with
     their reason in scripts/docsgen/inputs.toml and pass. A reason that starts with a file
     of the repository and a colon ("suites/functions.toml: the budget") is checked: the
-    number (without thousands commas; a percentage also as its fraction) must occur in that
-    file. An entry no
+    number (without thousands commas; a percentage also as its fraction, a negative number
+    also as its magnitude) must occur in that file. An entry no
     longer in its doc file is an error too, so the list cannot hide a number that has since
     changed. Returns the number of problems."""
     import tomllib
-    inputs = tomllib.loads(INPUTS.read_text()) if INPUTS.exists() else {}
+    root = root or ROOT
+    inputs_file = root / INPUTS.relative_to(ROOT)
+    inputs = tomllib.loads(inputs_file.read_text()) if inputs_file.exists() else {}
     total, used = 0, set()
-    for f in doc_files():
+    for f in (files if files is not None else doc_files()):
         if re.fullmatch(r"blind-proof-\d+\.md", f.name):
             continue   # a blind-proof report, written whole by scripts/blind_proof/run.py
-        rel = str(f.relative_to(ROOT))
+        rel = str(f.relative_to(root))
         allowed = inputs.get(rel, {})
         text = MARKER_RE.sub("", f.read_text())
         text = re.sub(r"```.*?```", "", text, flags=re.S)
@@ -257,21 +266,51 @@ def audit():
             print(f"{rel}: {len(hits)} line(s)")
             print("\n".join(hits))
             total += len(hits)
+    # The prose a module's render() writes is docs too: its string literals (outside
+    # collect(), which only runs the tool) may hold inputs, listed like the docs' own.
+    for f in sorted((root / "scripts" / "docsgen").glob("*.py")):
+        if f.name.startswith("_"):
+            continue
+        rel = str(f.relative_to(root))
+        allowed = inputs.get(rel, {})
+        hits = []
+        tree = ast.parse(f.read_text())
+        for fn in (n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name != "collect"):
+            doc = ast.get_docstring(fn, clean=False)
+            for node in ast.walk(fn):
+                if not (isinstance(node, ast.Constant) and isinstance(node.value, str)) \
+                        or node.value == doc:
+                    continue
+                plain = REFERENCE_RE.sub("", re.sub(r"`[^`]*`|\]\([^)]*\)", "", node.value))
+                if not re.search(r"[A-Za-z]{3}", plain):
+                    continue   # a format spec, a separator, a regex
+                nums = [m.group(0) for m in NUMBER_RE.finditer(plain)
+                        if re.search(r"[.,e%x]", m.group(0)) or len(m.group(0)) >= 3]
+                used.update((rel, n) for n in nums if n in allowed)
+                nums = [n for n in nums if n not in allowed]
+                if nums:
+                    hits.append(f"  {' '.join(nums[:6])}: line {node.lineno}: "
+                                f"{node.value.strip()[:70]!r}")
+        if hits:
+            print(f"{rel} (render text): {len(hits)} string(s)")
+            print("\n".join(hits))
+            total += len(hits)
     stale = [(f, n) for f, t in inputs.items() for n in t if (f, n) not in used]
     for f, n in stale:
-        print(f"{INPUTS.relative_to(ROOT)}: [\"{f}\"] \"{n}\" is no longer in that file: "
+        print(f"{inputs_file.relative_to(root)}: [\"{f}\"] \"{n}\" is no longer in that file: "
               "remove the entry")
     for f, t in inputs.items():
         for n, why in t.items():
             src = why.split(":", 1)[0]
-            if ":" not in why or not (ROOT / src).is_file():
+            if ":" not in why or not (root / src).is_file():
                 continue
             bare = re.sub(r"\s?%$|x$", "", n.replace(",", "").replace("−", "-"))
-            text = re.sub(r"(?<=\d)_(?=\d)", "", (ROOT / src).read_text())
-            forms = [bare] + ([repr(float(bare) / 100)] if n.endswith("%") else [])
+            text = re.sub(r"(?<=\d)_(?=\d)", "", (root / src).read_text())
+            forms = [bare, bare.lstrip("-")] + ([repr(float(bare) / 100)] if n.endswith("%")
+                                                else [])
             if not any(re.search(rf"(?<![\w.]){re.escape(b)}(?:\.0+)?(?![\w.]*\d)", text)
                        for b in forms):
-                print(f"{INPUTS.relative_to(ROOT)}: [\"{f}\"] \"{n}\": {bare} is not in {src}")
+                print(f"{inputs_file.relative_to(root)}: [\"{f}\"] \"{n}\": {bare} is not in {src}")
                 stale.append((f, n))
     print(f"{total} line(s) with numbers outside gen markers and not listed as inputs; "
           f"{len(stale)} stale input entr{'y' if len(stale) == 1 else 'ies'}")

@@ -16,7 +16,12 @@ THREE = ["MSGA", "GA", "PSO"]                 # the dissertation's methods, its 
 FLOOR = "RS"
 BASELINES = ["DE", "SHADE", "CMA-ES", "MSGA-LBFGS"]
 NAMES = {"RS": "random search"}
-HIT = 1e-4                                    # "within 1e-4 of the global minimum"
+HIT_TEXT = "1e-4"                             # "within 1e-4 of the global minimum"
+HIT = float(HIT_TEXT)
+# 2-D Griewank's nearest local minima sit near (±π, ±π√2), where cos x cos(y/√2) = 1 and
+# f = 3π²/4000; a run "ends in the ring" between these two errors.
+RING_MIN = round(3 * math.pi ** 2 / 4000, 4)
+RING = (0.006, 0.01)
 FRAGMENTS = [
     "readme-tour-griewank", "readme-main-wall", "functions-setup", "functions-table23", "functions-table24",
     "functions-30d", "functions-claims", "functions-main-table", "functions-ranks",
@@ -64,7 +69,7 @@ def collect(ctx):
             st = cell["stats"]
             c = {k: st[k] for k in ("median", "q1", "q3", "min", "max")}
             c.update(trials=st["n"], budget=o["budget"], hits=sum(x <= HIT for x in e),
-                     ring=sum(0.006 <= x <= 0.01 for x in e))   # Griewank's ring of minima
+                     ring=sum(RING[0] <= x <= RING[1] for x in e))
             z = dissertation.get(o["id"], {}).get(cell["optimizer"])
             if z:   # our runs that beat the dissertation's single run
                 c["beat_dissertation"] = sum(x < z["z_min"] - o["optimum"] for x in e)
@@ -146,7 +151,7 @@ def render(d):
         f"After {thousands(int(tenth))} evaluations MSGA's median error on 2-D Griewank is "
         f"{sig(fb['MSGA'], 2)} against GA's {sig(fb['GA'], 2)} and PSO's {sig(fb['PSO'], 2)}, "
         f"but at the end of the budget {best3} has the lowest median of the three and PSO reaches the "
-        f"global minimum (within 1e-4) in {hits['PSO']} of {n} runs, MSGA in {hits['MSGA']}: "
+        f"global minimum (within {HIT_TEXT}) in {hits['PSO']} of {n} runs, MSGA in {hits['MSGA']}: "
         f"the dissertation's \"MSGA is best on Griewank\" is {verdict}")
     f["readme-main-wall"] = f"{d['suite']['wall_s']:.0f} s"
     f["functions-setup"] = (
@@ -165,7 +170,7 @@ def render(d):
                 row.append(minus(value(x["max"])))
             rows.append(row + [f"{x['hits']}/{x['trials']}"])
         head = ["method", "dissertation `Z_min` (1 run)", f"median [q1, q3] ({n} runs)", "best"]
-        return markdown_table(head + (["worst"] if worst else []) + ["runs within 1e-4"], rows)
+        return markdown_table(head + (["worst"] if worst else []) + [f"runs within {HIT_TEXT}"], rows)
 
     f["functions-table23"] = (
         f"**Table 2.3, 2-D Griewank (minimum {sig(d['optimum'][g2])})**\n\n"
@@ -206,8 +211,8 @@ def render(d):
         f"- *MSGA is best on Griewank (Table 2.3)*: **{verdict}.** With the standard PSO "
         f"settings (inertia 0.9 -> 0.4, c1 = c2 = 2) PSO reaches the global minimum of 2-D "
         f"Griewank in {hits['PSO']} of {n} runs, MSGA in {hits['MSGA']}; "
-        f"{c[g2]['MSGA']['ring']} of MSGA's runs end between 0.006 and 0.01, near the ring "
-        f"of local minima at 0.0074. The dissertation's single PSO run "
+        f"{c[g2]['MSGA']['ring']} of MSGA's runs end between {RING[0]} and {RING[1]}, near the "
+        f"ring of local minima at {RING_MIN}. The dissertation's single PSO run "
         f"({d['dissertation'][g2]['PSO']['text']}) is beaten by "
         f"{c[g2]['PSO']['beat_dissertation']} of our {n} PSO runs; its PSO was probably "
         "configured differently, and a single run cannot tell.",
@@ -246,7 +251,7 @@ def render(d):
         rows.append(row)
     f["functions-baselines"] = (
         f"Median error over {n} trials at {thousands(budget)} evaluations (in brackets: runs "
-        f"within 1e-4 of the optimum, where any; bold: the lowest median):\n\n"
+        f"within {HIT_TEXT} of the optimum, where any; bold: the lowest median):\n\n"
         + markdown_table(["objective"] + cols, rows))
     ms = c[g2]["MSGA"]
     f["functions-convergence"] = (
@@ -254,7 +259,7 @@ def render(d):
         f"{thousands(int(tenth))} evaluations MSGA's median error is {sig(fb['MSGA'], 2)} "
         f"against GA's {sig(fb['GA'], 2)} and PSO's {sig(fb['PSO'], 2)} (fixed-budget table "
         f"in `report.md`), but {ms['trials'] - ms['hits']} of its {ms['trials']} runs end "
-        f"above 1e-4, {ms['ring']} of them between 0.006 and 0.01, around the ring of local "
-        f"minima at 0.0074, while PSO keeps descending to the optimum in the last third of "
+        f"above {HIT_TEXT}, {ms['ring']} of them between {RING[0]} and {RING[1]}, around the ring of local "
+        f"minima at {RING_MIN}, while PSO keeps descending to the optimum in the last third of "
         f"the budget.")
     return f

@@ -2,6 +2,7 @@
 --keep` (nine concealed-effect cases on the twin), its table, one case's report in full."""
 
 import math
+import re
 
 from docsgen._util import markdown_table, read_json, sig
 
@@ -75,12 +76,14 @@ def render(d):
     def tail(n):   # chi-square(1) survival at 10 + ln n: erfc(sqrt(x / 2))
         return math.erfc(math.sqrt((10 + math.log(n)) / 2))
 
+    n_case = int(re.search(r"\((\d+) samples every", d["case_report"]).group(1))
     f["proof-limits"] = (
         f"Honest limits: {len(seeds)} seeds per case are few (a {fa[0]}/{nulls} false-alarm "
         f"count bounds the rate only below about {100 * bound:.0f} % at 95 % confidence; "
         "the acceptance rule's three conditions, not this count, are what keep it low: a "
         "ΔBIC of -10 for one extra parameter is a likelihood-ratio statistic of 10 + ln N, a "
-        f"chi-square tail of {sig(tail(4000), 2)} at N = 4000 samples ({sig(tail(1000), 2)} "
+        f"chi-square tail of {sig(tail(n_case), 2)} at N = {n_case} samples "
+        f"({sig(tail(1000), 2)} "
         "at 1000; `scipy.stats.chi2.sf(10 + log(N), 1)`), but only if the residuals are "
         "white, which the diagnosis's own residual tests usually reject, so it is not a "
         "false-alarm rate)")
