@@ -319,6 +319,7 @@ pub fn run_file(path: &Path, o: &RunOverrides) -> Result<String> {
             out.display()
         )));
     }
+    let _lock = crate::pipeline::store::lock_folder(&out)?;
     let text = run_suite(&suite, o.threads, &out)?;
     Ok(if o.quiet {
         String::new()
