@@ -1299,7 +1299,10 @@ mod tests {
         });
         let m = refusal(&text, &c, 5);
         assert!(m.len() < 300, "{} bytes: {}...", m.len(), &m[..300]);
-        assert!(m.contains("is not a number") && m.contains("(1048577 bytes)"), "{m}");
+        assert!(
+            m.contains("is not a number") && m.contains("(1048577 bytes)"),
+            "{m}"
+        );
         // A huge header name is cut as well.
         let m = refusal(&format!("{cell},u_N,y_m\n"), &c, 1);
         assert!(m.len() < 400, "{} bytes", m.len());

@@ -233,9 +233,7 @@ impl ProgressLog {
         let path = dir.join(PROGRESS_FILE);
         let mut bytes = checksummed(&serde_json::to_vec(header).expect("serialisable"));
         for l in lines {
-            bytes.extend(checksummed(
-                &serde_json::to_vec(l).expect("serialisable"),
-            ));
+            bytes.extend(checksummed(&serde_json::to_vec(l).expect("serialisable")));
         }
         crate::base::atomic_write(&path, &bytes)?;
         Self::open(path)
