@@ -1,13 +1,16 @@
 //! The ground floor: what every other module may use and which uses nothing of the
 //! project. Random streams and their seeds with the one stable hash, atomic file writing,
-//! errors, and the declarative parameter tables of objectives and optimizers.
+//! errors, names safe as path components, and the declarative parameter tables of
+//! objectives and optimizers.
 
 pub mod atomic;
 pub mod error;
 pub mod hash;
 pub mod lstsq;
+pub mod name;
 pub mod params;
 pub mod seed;
 
 pub use atomic::atomic_write;
+pub use name::SafeName;
 pub use seed::{TrialSeed, standard_normal};

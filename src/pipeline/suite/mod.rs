@@ -28,9 +28,10 @@
 //! Errors are measured to the objective's known optimum, or to 0 where none is known (cost
 //! functions), so `targets` and `stop_at` mean the same thing for both.
 
-use crate::base::TrialSeed;
 use crate::base::error::Result;
+use crate::base::name::RESERVED_TABLE_IDS;
 use crate::base::params::Params;
+use crate::base::{SafeName, TrialSeed};
 use crate::harness::OptimizerConfig;
 use crate::objective::Objective;
 use crate::registry::{objective_kinds, optimizer_kinds};
@@ -69,8 +70,8 @@ struct RawSuite {
 
 /// One objective of a suite, built and validated.
 pub struct ObjectiveEntry {
-    /// Name in results.
-    pub id: String,
+    /// Name in results (and in plot and IOHprofiler file names).
+    pub id: SafeName,
     pub kind: &'static str,
     pub objective: Arc<dyn Objective>,
     /// Evaluations per trial.
@@ -98,7 +99,8 @@ impl ObjectiveEntry {
 
 /// One optimizer of a suite, validated.
 pub struct OptimizerEntry {
-    pub id: String,
+    /// Name in results (and the IOHprofiler export's folder).
+    pub id: SafeName,
     pub kind: &'static str,
     pub config: Arc<dyn OptimizerConfig>,
     pub params: Params,
@@ -109,7 +111,8 @@ pub struct Suite {
     pub path: PathBuf,
     /// The file as read, copied into the results.
     pub text: String,
-    pub name: String,
+    /// Names the results folder.
+    pub name: SafeName,
     pub description: Option<String>,
     pub seed: u64,
     pub trials: usize,
@@ -175,7 +178,7 @@ impl Suite {
             let params = Params::validate(kind.params, &st.given(fields), st.origin(line, what))?;
             let objective = (kind.build)(&params)?;
             let id = id.unwrap_or_else(|| format!("{}-{}d", kind.name, objective.dim()));
-            st.check_id(&id, &mut ids, line, "objective")?;
+            let id = st.check_id(&id, &mut ids, line, "objective", &[])?;
             let budget = match own_budget {
                 Some((b, l)) => positive_budget(b).map_err(|m| st.on(l, m))?,
                 None => budget,
@@ -213,7 +216,7 @@ impl Suite {
             let polish = st.take_float(&mut fields, "polish")?;
             let polish_line = fields.get("polish_with").map(|v| st.line(v.span().start));
             let polish_with = st.take_str(&mut fields, "polish_with")?;
-            st.check_id(&id, &mut ids, line, "optimizer")?;
+            let id = st.check_id(&id, &mut ids, line, "optimizer", &[])?;
             let params = Params::validate(
                 kind.params,
                 &st.given(fields),
@@ -298,8 +301,10 @@ impl Suite {
         // Metric names come from evaluating an objective's metrics (a simulation of each of
         // its recordings), so each objective is asked once for all tables.
         let mut metric_names = BTreeMap::new();
+        let mut ids = BTreeSet::new();
         for t in &raw.tables {
             let line = st.line(t.span().start);
+            st.check_id(&t.get_ref().id, &mut ids, line, "table", RESERVED_TABLE_IDS)?;
             check_table(t.get_ref(), &objectives, &optimizers, &mut metric_names)
                 .map_err(|m| st.on(line, format!("table `{}`: {m}", t.get_ref().id)))?;
             tables.push(t.get_ref().clone());
@@ -374,7 +379,7 @@ fn check_table(
                 ));
             }
             if let Some(m) = r.metric.as_ref().or(t.value.as_ref()) {
-                let names = names.entry(obj.id.clone()).or_insert_with(|| {
+                let names = names.entry(obj.id.to_string()).or_insert_with(|| {
                     let b = obj.objective.bounds();
                     let mid: Vec<f64> = b
                         .lower()
