@@ -292,6 +292,7 @@ impl ControlSuite {
         };
         let mut plants: Vec<PlantEntry> = Vec::new();
         let mut plant_ids = BTreeSet::new();
+        let mut stems_seen = BTreeSet::new();
         for p in &raw_plants {
             let line = st.line(p.span().start);
             let rp = p.get_ref();
@@ -343,6 +344,22 @@ impl ControlSuite {
             }
             .validate()
             .map_err(|e| err(e.to_string()))?;
+            // Figure and signal files join ids with '_', which ids may contain too.
+            let mut stems: Vec<String> = Vec::new();
+            for &r in &entry.references {
+                let reference = &references[r].name;
+                stems.push(format!("rmse_{}_{reference}", entry.id));
+                for &c in &entry.controllers {
+                    stems.push(format!("{}_{}_{reference}_", controllers[c].id, entry.id));
+                }
+            }
+            for stem in stems {
+                if !stems_seen.insert(stem.to_ascii_lowercase()) {
+                    return Err(err(format!(
+                        "its figure files `{stem}...` would overwrite another run's (ids are joined with '_'); rename a controller, plant or reference"
+                    )));
+                }
+            }
             plants.push(entry);
         }
 
@@ -572,6 +589,16 @@ mod tests {
         let escape = SMALL.replace("id = \"P\"\n", "id = \"../P\"\n");
         let m = error(&escape);
         assert!(m.contains("c.toml:10") && m.contains("use letters"), "{m}");
+        // `P_x` on `twin` and `P` on `x_twin` would draw into the same files.
+        let joined = SMALL
+            .replace("id = \"PI\"", "id = \"P_x\"")
+            .replace("id = \"creep\"", "id = \"x_twin\"")
+            .replace("controllers = [\"PI\"]", "controllers = [\"P\"]");
+        let m = error(&joined);
+        assert!(
+            m.contains("c.toml:23") && m.contains("P_x_twin_sine5_"),
+            "{m}"
+        );
         let late = SMALL.replace("transient = 0.2", "transient = 0.6");
         assert!(error(&late).contains("`transient` = 0.6"));
     }
