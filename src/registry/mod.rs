@@ -176,6 +176,29 @@ macro_rules! recording_params {
     };
 }
 
+/// The parameters of fitting objectives that name recordings (`A | B`), whose file paths
+/// a suite anchors to its own folder (see [`anchor_recordings`]).
+pub const RECORDING_KEYS: [&str; 2] = ["recording", "validate"];
+
+/// A `recording` or `validate` value with its relative file paths made absolute against
+/// `base`; None when no spec changes.
+pub fn anchor_recordings(value: &str, base: &Path) -> Option<String> {
+    let mut changed = false;
+    let specs: Vec<String> = value
+        .split(" | ")
+        .map(
+            |s| match crate::objective::source::anchored(s.trim(), base) {
+                Some(a) => {
+                    changed = true;
+                    a
+                }
+                None => s.to_string(),
+            },
+        )
+        .collect();
+    changed.then(|| specs.join(" | "))
+}
+
 /// The training recordings (`recording = "A | B"`; one may be sliced by `first`/`samples`)
 /// and the labelled validation recordings (`validate = "A | B"`) named by a fitting
 /// objective.

@@ -34,7 +34,7 @@ use crate::base::params::Params;
 use crate::base::{SafeName, TrialSeed};
 use crate::harness::OptimizerConfig;
 use crate::objective::Objective;
-use crate::registry::{objective_kinds, optimizer_kinds};
+use crate::registry::{RECORDING_KEYS, anchor_recordings, objective_kinds, optimizer_kinds};
 use serde::Deserialize;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -109,7 +109,9 @@ pub struct OptimizerEntry {
 /// A validated suite.
 pub struct Suite {
     pub path: PathBuf,
-    /// The file as read, copied into the results.
+    /// The file as read with its recordings' relative paths made absolute: what a results
+    /// folder stores, so its copy finds the same files wherever it lies (`report`,
+    /// `--resume`, `merge` read it), and what the run's fingerprint hashes.
     pub text: String,
     /// Names the results folder.
     pub name: SafeName,
@@ -164,9 +166,21 @@ impl Suite {
         let mut objectives = Vec::new();
         let mut selections = Vec::new();
         let mut ids = BTreeSet::new();
+        let base = path.parent().unwrap_or(Path::new(""));
+        let mut anchored = Vec::new();
         for entry in &raw.objectives {
             let (line, mut fields) = (st.line(entry.span().start), entry.get_ref().clone());
             let kind = st.take_kind(&kinds, |k| k.name, &mut fields, line, "objective")?;
+            for key in RECORDING_KEYS {
+                if let Some(v) = fields.get_mut(key)
+                    && kind.params.iter().any(|s| s.name == key)
+                    && let toml::Value::String(spec) = v.get_ref()
+                    && let Some(a) = anchor_recordings(spec, base)
+                {
+                    anchored.push((v.span(), a.clone()));
+                    *v.get_mut() = toml::Value::String(a);
+                }
+            }
             let id = st.take_str(&mut fields, "id")?;
             let own_budget = st.take_int(&mut fields, "budget")?;
             let own_targets = st.take_floats(&mut fields, "targets")?;
@@ -310,10 +324,16 @@ impl Suite {
             tables.push(t.get_ref().clone());
         }
 
+        // Replaced back to front, so the spans ahead stay valid.
+        anchored.sort_by_key(|(span, _)| span.start);
+        let mut text = text.to_string();
+        for (span, a) in anchored.into_iter().rev() {
+            text.replace_range(span, &toml::Value::String(a).to_string());
+        }
         Ok(Suite {
             tables,
             path: path.to_path_buf(),
-            text: text.to_string(),
+            text,
             name,
             description: raw.description,
             seed,

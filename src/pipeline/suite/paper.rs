@@ -2,6 +2,7 @@
 //! kinds of suite declare with `[[table]]` (cells name what ran; the report fills them).
 
 use crate::base::SafeName;
+use crate::base::name::RESERVED_TABLE_IDS;
 use serde::Deserialize;
 
 /// A table laid out like one in a paper, with its published numbers beside ours:
@@ -20,7 +21,7 @@ use serde::Deserialize;
 #[derive(Debug, Clone, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PaperTable {
-    /// Names `tables/<id>.md` and `.tex`; the suite loaders also refuse the reserved ids.
+    /// Names `tables/<id>.md` and `.tex`.
     #[serde(deserialize_with = "table_id")]
     pub id: SafeName,
     pub title: String,
@@ -35,10 +36,12 @@ pub struct PaperTable {
     pub rows: Vec<PaperRow>,
 }
 
-/// A table's `id`, checked as it is read (serde locates the message to its line).
+/// A table's `id`, checked as it is read (so the message points at its line): a name, and
+/// not one of a built-in table.
 fn table_id<'de, D: serde::Deserializer<'de>>(d: D) -> Result<SafeName, D::Error> {
     let s = String::deserialize(d)?;
-    SafeName::new(&s).map_err(|why| serde::de::Error::custom(format!("table id {s:?} {why}")))
+    SafeName::not_reserved(&s, RESERVED_TABLE_IDS)
+        .map_err(|why| serde::de::Error::custom(format!("table id {s:?} {why}")))
 }
 
 /// One row of a [`PaperTable`].
