@@ -152,9 +152,20 @@ fn hostile_names_and_entry_ids_are_refused_at_load() {
             "controller id",
         );
     }
+}
+
+#[test]
+fn ids_that_would_share_a_file_are_refused() {
+    let b = benchmark("t1");
     // Two tables with one id would write one file.
     let twice = format!("{b}{}", &b[b.find("[[table]]").unwrap()..]);
     run_refused(&twice, 18, "used twice");
+    // So would `A` and `a` on a case-insensitive file system.
+    let cased = b.replace(
+        "dim = 2\n",
+        "dim = 2\nid = \"A\"\n\n[[objective]]\nkind = \"sphere\"\ndim = 2\nid = \"a\"\n",
+    );
+    run_refused(&cased, 11, "used twice");
 }
 
 /// Runs the benchmark suite into `root/out` (from `root/work`) and returns the folder.
