@@ -2,7 +2,8 @@
 //! command line:
 //!
 //! - a CSV file: `$OPTBENCH_DATA/boucwen-benchmark/test_multisine.csv` (`$OPTBENCH_DATA`
-//!   expands to [`data_dir`]), or a path relative to the suite file's folder; columns are
+//!   expands to [`data_dir`]), or a path relative to the suite file's folder (a suite
+//!   stores it made absolute, see [`anchored`]); columns are
 //!   picked by name, read with [`ReadOptions`] (suite keys `resample`, `delimiter`);
 //! - `twin:<signal>`: the piezo twin driven by a signal (see [`crate::data::signal`]), simulated
 //!   from a fixed noise seed, so a suite regenerates the same recording every time;

@@ -734,3 +734,29 @@ pub fn default_optimizer(name: &str) -> Option<Arc<dyn OptimizerConfig>> {
     let p = Params::defaults(k.params, name).ok()?;
     (k.build)(&p).ok()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_relative_csv_paths_are_anchored() {
+        let base = Path::new("/s");
+        assert_eq!(
+            anchor_recordings(
+                "a.csv | twin:sine:freq=1 | $OPTBENCH_DATA/x.csv | /d/b.csv",
+                base
+            )
+            .as_deref(),
+            Some("/s/a.csv | twin:sine:freq=1 | $OPTBENCH_DATA/x.csv | /d/b.csv")
+        );
+        for kept in [
+            "twin:chirp",
+            "eq318:sine:freq=2",
+            "$OPTBENCH_DATA/b/c.csv",
+            "/abs.csv",
+        ] {
+            assert_eq!(anchor_recordings(kept, base), None, "{kept}");
+        }
+    }
+}
