@@ -1,6 +1,7 @@
 //! The ground floor: what every other module may use and which uses nothing of the
 //! project. Random streams and their seeds with the one stable hash, atomic file writing,
-//! errors, JSON numbers that may be infinite, and the declarative parameter tables of
+//! errors, JSON numbers that may be infinite, names safe as path components, and the
+//! declarative parameter tables of
 //! objectives and optimizers.
 
 pub mod atomic;
@@ -8,8 +9,10 @@ pub mod error;
 pub mod hash;
 pub mod json_float;
 pub mod lstsq;
+pub mod name;
 pub mod params;
 pub mod seed;
 
 pub use atomic::{atomic_write, remove_stale_temporaries};
+pub use name::SafeName;
 pub use seed::{TrialSeed, standard_normal};

@@ -173,7 +173,7 @@ pub fn prepare(req: &RunRequest) -> Result<Prepared> {
     let out = req.out.clone().unwrap_or_else(|| {
         let name = match req.shard {
             Some(s) => format!("{}-shard-{}-of-{}", suite.name, s.k, s.n),
-            None => suite.name.clone(),
+            None => suite.name.to_string(),
         };
         PathBuf::from("results").join(name)
     });
@@ -191,7 +191,7 @@ pub fn prepare(req: &RunRequest) -> Result<Prepared> {
     let keys: Vec<String> = plan.iter().map(|t| trial_key(&suite, t)).collect();
     let header = ProgressHeader {
         format: FORMAT.into(),
-        suite: suite.name.clone(),
+        suite: suite.name.to_string(),
         suite_file: std::path::absolute(&req.suite)
             .unwrap_or_else(|_| req.suite.clone())
             .display()
