@@ -1,8 +1,7 @@
 //! The ground floor: what every other module may use and which uses nothing of the
 //! project. Random streams and their seeds with the one stable hash, atomic file writing,
 //! errors, JSON numbers that may be infinite, names safe as path components, and the
-//! declarative parameter tables of
-//! objectives and optimizers.
+//! declarative parameter tables of objectives and optimizers.
 
 pub mod atomic;
 pub mod error;
