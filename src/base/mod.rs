@@ -1,10 +1,12 @@
 //! The ground floor: what every other module may use and which uses nothing of the
 //! project. Random streams and their seeds with the one stable hash, atomic file writing,
-//! errors, and the declarative parameter tables of objectives and optimizers.
+//! errors, the declarative parameter tables of objectives and optimizers, and the upper
+//! limits on sizes a user can set.
 
 pub mod atomic;
 pub mod error;
 pub mod hash;
+pub mod limits;
 pub mod lstsq;
 pub mod params;
 pub mod seed;

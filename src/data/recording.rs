@@ -3,6 +3,7 @@
 
 use crate::base::atomic_write;
 use crate::base::error::{Error, Result};
+use crate::base::limits::{MAX_MAGNITUDE, MAX_SAMPLES};
 use std::path::{Path, PathBuf};
 
 /// A uniformly sampled single-input single-output record.
@@ -24,8 +25,8 @@ pub struct Recording {
 pub const MIN_SAMPLES: usize = 8;
 
 impl Recording {
-    /// Checked constructor: equal lengths, at least [`MIN_SAMPLES`], finite values, strictly
-    /// increasing uniform time.
+    /// Checked constructor: equal lengths, [`MIN_SAMPLES`] to [`MAX_SAMPLES`], finite values
+    /// within ±[`MAX_MAGNITUDE`], strictly increasing uniform time.
     pub fn new(name: impl Into<String>, t: Vec<f64>, u: Vec<f64>, y: Vec<f64>) -> Result<Self> {
         let name = name.into();
         if t.len() != u.len() || t.len() != y.len() {
@@ -42,9 +43,20 @@ impl Recording {
                 t.len()
             )));
         }
+        if t.len() > MAX_SAMPLES {
+            return Err(Error::Input(format!(
+                "{name}: {} samples, above the limit of {MAX_SAMPLES} (derived from memory)",
+                t.len()
+            )));
+        }
         for (i, ((a, b), c)) in t.iter().zip(&u).zip(&y).enumerate() {
             if !(a.is_finite() && b.is_finite() && c.is_finite()) {
                 return Err(Error::Input(format!("{name}: sample {i} is not finite")));
+            }
+            if [a, b, c].iter().any(|v| v.abs() > MAX_MAGNITUDE) {
+                return Err(Error::Input(format!(
+                    "{name}: sample {i} ({a}, {b}, {c}) is beyond ±{MAX_MAGNITUDE:e}"
+                )));
             }
         }
         let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
@@ -118,6 +130,15 @@ impl Recording {
     }
 
     pub fn slice(&self, range: std::ops::Range<usize>) -> Result<Self> {
+        if range.start > range.end || range.end > self.len() {
+            return Err(Error::Input(format!(
+                "{}: samples {}..{} requested but it has {}",
+                self.name,
+                range.start,
+                range.end,
+                self.len()
+            )));
+        }
         let mut r = Self::new(
             format!("{}[{}..{}]", self.name, range.start, range.end),
             self.t[range.clone()].to_vec(),
@@ -490,6 +511,12 @@ fn number(
     if !v.is_finite() {
         return Err(format!("'{text}' is not finite"));
     }
+    if v.abs() > MAX_MAGNITUDE {
+        return Err(format!(
+            "'{text}' is beyond ±{MAX_MAGNITUDE:e} (squared errors would overflow; rescale the \
+             column's unit)"
+        ));
+    }
     Ok((v, token))
 }
 
@@ -776,6 +803,13 @@ impl Recording {
                 .position()
                 .map_or(last_line + 1, |p| p.line() as usize);
             last_line = line;
+            if lines.len() == MAX_SAMPLES {
+                return Err(Error::at(
+                    path,
+                    line,
+                    format!("more than {MAX_SAMPLES} data rows (a limit derived from memory)"),
+                ));
+            }
             for field in record.iter() {
                 printing.see_field(field);
             }
@@ -807,6 +841,20 @@ impl Recording {
                 last_line,
                 format!("{n} data rows, at least {MIN_SAMPLES} samples needed"),
             ));
+        }
+        // A constant input or output (a disconnected channel, a column of zeros) has
+        // nothing to fit and makes scaled fits and diagnoses divide by zero.
+        for (col, v) in cols.iter().zip([&t, &u, &y]).skip(1) {
+            if v.iter().all(|x| *x == v[0]) {
+                return Err(Error::at(
+                    path,
+                    header_line,
+                    format!(
+                        "{} column '{}': every value is {} (lines {}-{}): nothing to fit",
+                        col.role, col.name, v[0], lines[0], last_line
+                    ),
+                ));
+            }
         }
         let time = &cols[0];
         for i in 1..n {
@@ -898,8 +946,8 @@ impl Recording {
             }
             Some(k) => {
                 let span = t[n - 1] - t[0];
-                let m = (span / grid.step).round() as usize + 1;
-                if m > RESAMPLE_GROWTH * n {
+                let m = ((span / grid.step).round() as usize).saturating_add(1);
+                if m > RESAMPLE_GROWTH * n || m > MAX_SAMPLES {
                     return Err(Error::at(
                         path,
                         0,

@@ -9,6 +9,7 @@
 //! - `eq318:<signal>`: the dissertation's numerical identification example (eq. 3.18).
 
 use crate::base::error::{Error, Result};
+use crate::base::limits;
 use crate::data::recording::{Columns, ReadOptions, Recording, data_dir};
 use crate::data::signal::Signal;
 use crate::physics::rbf;
@@ -66,15 +67,19 @@ pub fn resolve_path(spec: &str, base: &Path) -> PathBuf {
     if p.is_absolute() { p } else { base.join(p) }
 }
 
+/// The duration of a simulated source; its samples (`duration / dt`) within
+/// [`MAX_SAMPLES`](crate::base::limits::MAX_SAMPLES).
 fn duration_of(signal: &Signal, opts: &SimOptions, spec: &str) -> Result<f64> {
-    match (opts.duration, signal) {
+    let d = match (opts.duration, signal) {
         (Some(d), _) if d > 0.0 && d.is_finite() => Ok(d),
         (Some(d), _) => Err(Error::Input(format!("`{spec}`: duration {d} must be > 0"))),
         (None, Signal::Chirp { duration, .. }) => Ok(*duration),
         (None, _) => Err(Error::Input(format!(
             "`{spec}`: give a duration (seconds) for this signal"
         ))),
-    }
+    }?;
+    limits::samples(d, opts.dt).map_err(|e| Error::Input(format!("`{spec}`: {e}")))?;
+    Ok(d)
 }
 
 impl Source {

@@ -30,6 +30,7 @@
 
 use crate::base::TrialSeed;
 use crate::base::error::Result;
+use crate::base::limits;
 use crate::base::params::Params;
 use crate::harness::OptimizerConfig;
 use crate::objective::Objective;
@@ -305,7 +306,7 @@ impl Suite {
             tables.push(t.get_ref().clone());
         }
 
-        Ok(Suite {
+        let suite = Suite {
             tables,
             path: path.to_path_buf(),
             text: text.to_string(),
@@ -315,6 +316,29 @@ impl Suite {
             trials,
             objectives,
             optimizers,
+        };
+        if let Some(m) = suite.plan_too_large() {
+            return Err(st.at(raw.trials.span().start, format!("`trials` = {trials}: {m}")));
+        }
+        Ok(suite)
+    }
+
+    /// Why the plan's trial records would not fit in memory (see
+    /// [`limits::trial_memory`]), if they would not.
+    pub fn plan_too_large(&self) -> Option<String> {
+        let bytes = self
+            .objectives
+            .iter()
+            .map(|o| {
+                let n = (o.optimizers.len() as u64).saturating_mul(self.trials as u64);
+                limits::trial_memory(n, o.objective.dim())
+            })
+            .fold(0u64, u64::saturating_add);
+        (bytes > limits::BUDGET_BYTES).then(|| {
+            format!(
+                "the plan's trial records would take {bytes} B, above the budget of {} B (fewer trials, objectives or optimizers)",
+                limits::BUDGET_BYTES
+            )
         })
     }
 
