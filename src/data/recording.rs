@@ -129,6 +129,28 @@ impl Recording {
         Ok(r)
     }
 
+    /// Refuses a constant input or output (a disconnected channel, a column of zeros):
+    /// nothing to fit, and scaled fits and diagnoses would divide by zero. For records read
+    /// with `columns`, to name them.
+    pub fn check_varies(&self, columns: &Columns) -> Result<()> {
+        for (role, name, v) in [
+            ("input", &columns.input, &self.u),
+            ("output", &columns.output, &self.y),
+        ] {
+            if let Some(first) = v.first()
+                && v.iter().all(|x| x == first)
+            {
+                return Err(Error::Input(format!(
+                    "{}: {role} column '{name}': every value is {first} (all {} samples): \
+                     nothing to fit",
+                    self.name,
+                    v.len()
+                )));
+            }
+        }
+        Ok(())
+    }
+
     pub fn slice(&self, range: std::ops::Range<usize>) -> Result<Self> {
         if range.start > range.end || range.end > self.len() {
             return Err(Error::Input(format!(
@@ -842,20 +864,6 @@ impl Recording {
                 format!("{n} data rows, at least {MIN_SAMPLES} samples needed"),
             ));
         }
-        // A constant input or output (a disconnected channel, a column of zeros) has
-        // nothing to fit and makes scaled fits and diagnoses divide by zero.
-        for (col, v) in cols.iter().zip([&t, &u, &y]).skip(1) {
-            if v.iter().all(|x| *x == v[0]) {
-                return Err(Error::at(
-                    path,
-                    header_line,
-                    format!(
-                        "{} column '{}': every value is {} (lines {}-{}): nothing to fit",
-                        col.role, col.name, v[0], lines[0], last_line
-                    ),
-                ));
-            }
-        }
         let time = &cols[0];
         for i in 1..n {
             if t[i] <= t[i - 1] {
@@ -1211,12 +1219,12 @@ mod tests {
         let dt = 1.0 / 750.0;
         let t: Vec<f64> = (0..n).map(|k| 3.0 + k as f64 * dt).collect();
         let mut u: Vec<f64> = (0..n)
-            .map(|_| (rng.random::<f64>() - 0.5) * 10f64.powi(rng.random_range(-300..300)))
+            .map(|_| (rng.random::<f64>() - 0.5) * 10f64.powi(rng.random_range(-300..30)))
             .collect();
         let y: Vec<f64> = (0..n).map(|_| rng.random::<f64>() * 1e-4).collect();
         u[0] = -0.0;
         u[1] = f64::MIN_POSITIVE / 8.0; // subnormal
-        u[2] = f64::MAX;
+        u[2] = MAX_MAGNITUDE; // the largest accepted
         let mut r = Recording::new("orig", t, u, y).unwrap();
         r.units = ["s".into(), "V".into(), "mm".into()];
         let dir = tempfile::tempdir().unwrap();

@@ -1479,6 +1479,24 @@ mod tests {
     }
 
     #[test]
+    fn nesting_is_bounded_before_the_stack_is() {
+        let parens = |n: usize| format!("{}sine:freq=1{}", "(".repeat(n), ")".repeat(n));
+        assert!(Signal::parse(&parens(MAX_NESTING)).is_ok());
+        refused(&parens(MAX_NESTING + 1), &["nested more than 64 levels"]);
+        assert!(Signal::parse(&format!("{}sine:freq=1", "2*".repeat(MAX_NESTING))).is_ok());
+        refused(
+            &format!("{}sine:freq=1", "2*".repeat(MAX_NESTING + 1)),
+            &["nested more than 64 levels"],
+        );
+        // Parameters in parentheses count too.
+        let mut am = "sine:freq=1".to_string();
+        for _ in 0..MAX_NESTING + 1 {
+            am = format!("am:carrier=({am}),envelope=ramp");
+        }
+        refused(&am, &["nested more than 64 levels"]);
+    }
+
+    #[test]
     fn parse_rejects_bad_specs_with_useful_messages() {
         refused(
             "sawtooth:freq=1",

@@ -561,6 +561,31 @@ mod tests {
     }
 
     #[test]
+    fn non_finite_values_are_recorded_as_the_finite_penalty() {
+        struct Bad(Bounds);
+        impl Objective for Bad {
+            fn name(&self) -> &str {
+                "bad"
+            }
+            fn bounds(&self) -> &Bounds {
+                &self.0
+            }
+            fn evaluate(&self, x: &[f64]) -> f64 {
+                if x[0] > 0.0 { f64::NAN } else { f64::INFINITY }
+            }
+        }
+        let obj = Arc::new(Bad(Bounds::uniform(1, -1.0, 1.0).unwrap()));
+        let mut ev = Evaluator::new(obj, 4, None);
+        let mut out = [0.0; 4];
+        ev.evaluate_batch(&[0.5, -0.5, 0.2, -0.2], &mut out);
+        let t = ev.finish();
+        assert_eq!(t.best, NONFINITE_COST);
+        assert_eq!((t.nonfinite, t.penalised), (4, 4));
+        assert!(t.checkpoints.iter().all(|c| c.1 == NONFINITE_COST));
+        assert_eq!(t.improvements, vec![(1, NONFINITE_COST)]);
+    }
+
+    #[test]
     fn nan_never_becomes_best() {
         struct Nan(Bounds);
         impl Objective for Nan {

@@ -143,9 +143,11 @@ impl Source {
     }
 }
 /// [`Recording::read_csv_noted`], its notes printed to stderr (where every command that
-/// reads recordings says what was done to them).
+/// reads recordings says what was done to them), a constant input or output refused
+/// ([`Recording::check_varies`]): the one read of fit, suites, diagnose and control.
 pub fn read_noting(path: &Path, columns: &Columns, read: &ReadOptions) -> Result<Recording> {
     let (rec, notes) = Recording::read_csv_noted(path, columns, read)?;
+    rec.check_varies(columns)?;
     for n in notes {
         eprintln!("note: {n}");
     }
