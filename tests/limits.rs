@@ -10,8 +10,13 @@ use std::path::Path;
 
 /// A 500-sample recording of a hysteresis-like response; `cell` replaces one output.
 fn recording(dir: &Path, name: &str, cell: Option<(usize, &str)>, zero: bool) {
+    recording_of(500, dir, name, cell, zero);
+}
+
+/// [`recording`] with `n` samples.
+fn recording_of(n: usize, dir: &Path, name: &str, cell: Option<(usize, &str)>, zero: bool) {
     let mut s = String::from("t,u,y\n");
-    for k in 0..500 {
+    for k in 0..n {
         let t = k as f64 * 1e-3;
         let u = (std::f64::consts::TAU * 10.0 * t).sin();
         let y = match cell {
@@ -267,6 +272,8 @@ fn absurd_recordings_and_bounds_are_refused() {
     let d = dir.path();
     recording(d, "big.csv", Some((100, "-1e308")), false);
     recording(d, "zero.csv", None, true);
+    // Long enough for diagnose's hold-out (which ran on it and wrote NaN parameters).
+    recording_of(1000, d, "zero1000.csv", None, true);
     let fit = |file: &'static str| {
         [
             "fit",
@@ -296,14 +303,16 @@ fn absurd_recordings_and_bounds_are_refused() {
         &[
             "diagnose",
             "--train",
-            "zero.csv",
+            "zero1000.csv",
             "--holdout",
             "0.2",
+            "--bootstrap",
+            "0",
             "--out",
             "o",
         ],
         d,
-        &["zero.csv", "output column 'y'", "every value is 0"],
+        &["zero1000.csv", "output column 'y'", "every value is 0"],
     );
     let mut bounds = fit("r.csv").to_vec();
     recording(d, "r.csv", None, false);
