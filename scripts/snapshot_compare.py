@@ -2,8 +2,8 @@
 """Compare two result trees written by scripts/snapshot.sh with two builds.
 
 Every file must be byte-identical except what records when and where it ran: wall times
-(`wall_s`, `started`, `finished`), the build and commit, the command line, and paths naming
-the output folder. JSON and JSON Lines are compared with those keys left out (the progress
+(`wall_s`, `started`, `finished`), the build and commit, the command line, paths naming
+the output folder, the progress lines' checksums and the folder's lock file. JSON and JSON Lines are compared with those keys left out (the progress
 log as a set of lines: it is appended in the order trials finish), CSV without its `wall_s`
 column; every other file (Markdown, LaTeX, PNG, SVG, IOH data) byte for byte.
 
@@ -16,7 +16,10 @@ import os
 import sys
 
 # Keys that record the run, not its results.
-RUN_KEYS = {"wall_s", "started", "finished", "build", "git_commit", "command", "out", "outputs", "suite_file", "fingerprint"}
+# `crc` checksums a progress line, wall time included.
+RUN_KEYS = {"wall_s", "started", "finished", "build", "git_commit", "command", "out", "outputs", "suite_file", "fingerprint", "crc"}
+# Files that record who held the folder, not results.
+RUN_FILES = {".optbench.lock"}
 
 
 def strip(v, a, b):
@@ -54,6 +57,8 @@ def files(root):
     out = set()
     for d, _, fs in os.walk(root):
         for f in fs:
+            if f in RUN_FILES:
+                continue
             out.add(os.path.relpath(os.path.join(d, f), root))
     return out
 

@@ -307,7 +307,8 @@ fn report_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
     for sub in ["", "tables", "plots"] {
         for e in std::fs::read_dir(dir.join(sub)).unwrap() {
             let p = e.unwrap().path();
-            if p.is_file() {
+            // The folder's lock file names its last holder (pid, time), not a result.
+            if p.is_file() && !p.ends_with(optbench::pipeline::store::lock::LOCK_FILE) {
                 out.push((p.display().to_string(), std::fs::read(&p).unwrap()));
             }
         }

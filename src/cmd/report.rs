@@ -16,6 +16,11 @@ pub fn run(args: ReportArgs) -> Result<()> {
     match args.other {
         Some(other) => print!("{}", crate::report::compare(&args.results, &other)?),
         None => {
+            // The report writes into the folder: not while a run or merge writes it.
+            let _lock = match args.results.is_dir() {
+                true => Some(crate::pipeline::store::lock_folder(&args.results)?),
+                false => None, // nothing to lock; `generate` says what is missing
+            };
             let table = crate::report::generate(&args.results)?;
             print!("{table}");
             println!("\nreport: {}", args.results.join("report.md").display());

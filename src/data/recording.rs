@@ -499,10 +499,11 @@ fn number(
     line: usize,
     decimal: &mut Option<(char, usize)>,
 ) -> std::result::Result<(f64, String), String> {
+    let shown = clipped(text);
     let (comma, point) = (text.contains(','), text.contains('.'));
     if comma && point {
         return Err(format!(
-            "'{text}' has both a decimal point and a comma (digit grouping is not read); \
+            "'{shown}' has both a decimal point and a comma (digit grouping is not read); \
              expected a plain number such as 1234.5"
         ));
     }
@@ -517,7 +518,7 @@ fn number(
             Some((other, at)) if other != sep => {
                 let name = |c| if c == ',' { "comma" } else { "point" };
                 return Err(format!(
-                    "'{text}' has a decimal {} but line {at} a decimal {}; expected one \
+                    "'{shown}' has a decimal {} but line {at} a decimal {}; expected one \
                      decimal separator throughout the file",
                     name(sep),
                     name(other)
@@ -529,9 +530,9 @@ fn number(
     }
     let v: f64 = token
         .parse()
-        .map_err(|_| format!("'{text}' is not a number"))?;
+        .map_err(|_| format!("'{shown}' is not a number"))?;
     if !v.is_finite() {
-        return Err(format!("'{text}' is not finite"));
+        return Err(format!("'{shown}' is not finite"));
     }
     if v.abs() > MAX_MAGNITUDE {
         return Err(format!(
@@ -540,6 +541,16 @@ fn number(
         ));
     }
     Ok((v, token))
+}
+
+/// `text` as quoted in a message: a cell of megabytes (a corrupt or binary file) is cut to
+/// its start and its length, so an error stays one readable line.
+fn clipped(text: &str) -> std::borrow::Cow<'_, str> {
+    const KEEP: usize = 40;
+    match text.char_indices().nth(KEEP) {
+        None => text.into(),
+        Some((end, _)) => format!("{}... ({} bytes)", &text[..end], text.len()).into(),
+    }
 }
 
 /// A `--columns` value built from a header: the time column (`t`, `t_*`, `time*`), the
@@ -753,7 +764,11 @@ impl Recording {
             ));
         }
         let names: Vec<&str> = headers.iter().collect();
-        let available = names.join(", ");
+        let available = names
+            .iter()
+            .map(|n| clipped(n))
+            .collect::<Vec<_>>()
+            .join(", ");
         let numeric_header = names
             .iter()
             .all(|h| h.replace(',', ".").parse::<f64>().is_ok());
@@ -1328,6 +1343,25 @@ mod tests {
         let ragged = good(10).replace("\n4,0.04,8,-4\n", "\n4,0.04,8\n");
         let m = refusal(&ragged, &c, 6);
         assert!(m.contains("row has 3 fields but the header has 4"), "{m}");
+    }
+
+    #[test]
+    fn a_huge_cell_is_cut_in_the_message() {
+        let c = cols("t_s,u_N,y_m");
+        let cell = "7".repeat(1 << 20) + "x";
+        let text = table(10, |k| {
+            let y = if k == 3 { cell.as_str() } else { "2" };
+            format!("{k},{},1,{y}", k as f64 * 0.01)
+        });
+        let m = refusal(&text, &c, 5);
+        assert!(m.len() < 300, "{} bytes: {}...", m.len(), &m[..300]);
+        assert!(
+            m.contains("is not a number") && m.contains("(1048577 bytes)"),
+            "{m}"
+        );
+        // A huge header name is cut as well.
+        let m = refusal(&format!("{cell},u_N,y_m\n"), &c, 1);
+        assert!(m.len() < 400, "{} bytes", m.len());
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! (store, statistics, report) reads it.
 
 use crate::objective::Presentation;
-use serde::{Deserialize, Deserializer, Serialize};
+use serde::{Deserialize, Serialize};
 
 /// The stored result of one trial: one line of `traces.jsonl`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -14,8 +14,11 @@ pub struct TrialRecord {
     pub seed: String,
     pub budget: u64,
     pub evaluations: u64,
-    #[serde(deserialize_with = "f64_or_inf")]
+    /// +inf while no finite value was seen; infinities are stored as "inf"/"-inf" (see
+    /// [`crate::base::json_float`]).
+    #[serde(with = "crate::base::json_float::one")]
     pub best: f64,
+    #[serde(with = "crate::base::json_float::many")]
     pub best_x: Vec<f64>,
     /// Known optimum of the objective, if any.
     pub optimum: Option<f64>,
@@ -28,25 +31,13 @@ pub struct TrialRecord {
     /// Wall-clock seconds; recorded, never used as a budget.
     pub wall_s: f64,
     /// (evaluation, best-so-far) at every improvement.
+    #[serde(with = "crate::base::json_float::pairs")]
     pub improvements: Vec<(u64, f64)>,
     /// (evaluation, best-so-far) at log-spaced evaluation counts and at the end (+inf
     /// before the first value: a gradient method's first value comes after its gradient's
     /// evaluations).
-    #[serde(deserialize_with = "pairs_or_inf")]
+    #[serde(with = "crate::base::json_float::pairs")]
     pub checkpoints: Vec<(u64, f64)>,
-}
-
-/// JSON has no infinity: serde_json writes it as null, so null reads back as +inf.
-fn f64_or_inf<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
-}
-
-/// [`f64_or_inf`] for the values of (evaluation, value) pairs.
-fn pairs_or_inf<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(u64, f64)>, D::Error> {
-    Ok(Vec::<(u64, Option<f64>)>::deserialize(d)?
-        .into_iter()
-        .map(|(e, v)| (e, v.unwrap_or(f64::INFINITY)))
-        .collect())
 }
 
 impl TrialRecord {
@@ -87,7 +78,17 @@ mod tests {
             checkpoints: vec![(1, f64::INFINITY), (4, 0.5), (8, 0.5)],
         };
         let line = serde_json::to_string(&r).unwrap();
-        assert!(line.contains("[1,null]"), "{line}");
+        assert!(line.contains(r#"[1,"inf"]"#), "{line}");
+        assert_eq!(serde_json::from_str::<TrialRecord>(&line).unwrap(), r);
+        // An objective that overflows downwards: -inf keeps its sign and reads back.
+        let r = TrialRecord {
+            best: f64::NEG_INFINITY,
+            improvements: vec![(1, f64::NEG_INFINITY)],
+            checkpoints: vec![(1, f64::NEG_INFINITY), (8, f64::NEG_INFINITY)],
+            ..r
+        };
+        let line = serde_json::to_string(&r).unwrap();
+        assert!(line.contains(r#""best":"-inf""#), "{line}");
         assert_eq!(serde_json::from_str::<TrialRecord>(&line).unwrap(), r);
     }
 }

@@ -2,7 +2,8 @@
 //! command line:
 //!
 //! - a CSV file: `$OPTBENCH_DATA/boucwen-benchmark/test_multisine.csv` (`$OPTBENCH_DATA`
-//!   expands to [`data_dir`]), or a path relative to the suite file's folder; columns are
+//!   expands to [`data_dir`]), or a path relative to the suite file's folder (a suite
+//!   stores it made absolute, see [`anchored`]); columns are
 //!   picked by name, read with [`ReadOptions`] (suite keys `resample`, `delimiter`);
 //! - `twin:<signal>`: the piezo twin driven by a signal (see [`crate::data::signal`]), simulated
 //!   from a fixed noise seed, so a suite regenerates the same recording every time;
@@ -65,6 +66,27 @@ pub fn resolve_path(spec: &str, base: &Path) -> PathBuf {
     }
     let p = PathBuf::from(spec);
     if p.is_absolute() { p } else { base.join(p) }
+}
+
+/// `spec` with a relative CSV path made absolute against `base` (the suite's folder), so the
+/// spec means the same file read from anywhere, e.g. from the suite's copy in a results
+/// folder; None when it already does: simulated sources, absolute paths, and
+/// `$OPTBENCH_DATA` paths (kept symbolic: each reader's data folder is where the data is).
+pub fn anchored(spec: &str, base: &Path) -> Option<String> {
+    if spec.starts_with("twin:") || spec.starts_with("eq318:") || spec.starts_with("$OPTBENCH_DATA")
+    {
+        return None;
+    }
+    let p = Path::new(spec);
+    if p.is_absolute() {
+        return None;
+    }
+    let joined = base.join(p);
+    // The file itself where it exists (no `dir/../` left), else the path made absolute.
+    let abs = std::fs::canonicalize(&joined)
+        .or_else(|_| std::path::absolute(&joined))
+        .ok()?;
+    abs.to_str().map(String::from)
 }
 
 /// The duration of a simulated source; its samples (`duration / dt`) within

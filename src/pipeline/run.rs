@@ -178,7 +178,7 @@ pub fn prepare(req: &RunRequest) -> Result<Prepared> {
     let out = req.out.clone().unwrap_or_else(|| {
         let name = match req.shard {
             Some(s) => format!("{}-shard-{}-of-{}", suite.name, s.k, s.n),
-            None => suite.name.clone(),
+            None => suite.name.to_string(),
         };
         PathBuf::from("results").join(name)
     });
@@ -196,7 +196,7 @@ pub fn prepare(req: &RunRequest) -> Result<Prepared> {
     let keys: Vec<String> = plan.iter().map(|t| trial_key(&suite, t)).collect();
     let header = ProgressHeader {
         format: FORMAT.into(),
-        suite: suite.name.clone(),
+        suite: suite.name.to_string(),
         suite_file: std::path::absolute(&req.suite)
             .unwrap_or_else(|_| req.suite.clone())
             .display()
@@ -245,19 +245,29 @@ fn differences(old: &ProgressHeader, new: &ProgressHeader) -> Vec<String> {
     d
 }
 
-/// Opens the progress log for `p` (fresh, resumed or rewritten) and returns it with the
-/// records already finished, by key.
+/// Locks the results folder and opens the progress log for `p` (fresh, resumed or
+/// rewritten); returns it, holding the lock, with the records already finished, by key.
+/// Damaged log lines are reported on stderr and their trials left to run again.
 pub fn open_log(
     p: &Prepared,
     resume: bool,
     force: bool,
 ) -> Result<(ProgressLog, HashMap<String, TrialRecord>)> {
+    let lock = crate::pipeline::store::lock_folder(&p.out)?;
     let existing = read_progress(&p.out)?;
+    if let Some(old) = &existing {
+        for w in &old.skipped {
+            eprintln!("warning: {w}");
+        }
+    }
     let mut done = HashMap::new();
     let wanted: std::collections::HashSet<&str> = p.keys.iter().map(String::as_str).collect();
     let log = match existing {
         Some(old) if resume || force => {
-            let diff = differences(&old.header, &p.header);
+            let mut diff = differences(&old.header, &p.header);
+            if !old.header_intact {
+                diff.push("its header fails its checksum (edited or damaged)".into());
+            }
             if !diff.is_empty() && !force {
                 return Err(Error::Input(format!(
                     "{}: cannot resume: {}; pass --force-resume to keep the {} stored trials whose configuration is unchanged and rerun the rest",
@@ -271,10 +281,11 @@ pub fn open_log(
                     done.entry(l.key).or_insert(l.record);
                 }
             }
-            if diff.is_empty() {
+            if diff.is_empty() && old.skipped.is_empty() {
                 ProgressLog::resume(&p.out, old.valid_len)?
             } else {
-                // A new header, and only the trials this run can use, in plan order.
+                // A new header (or the same, without the damaged lines), and only the
+                // trials this run can use, in plan order.
                 let kept: Vec<ProgressLine> = p
                     .keys
                     .iter()
@@ -299,13 +310,9 @@ pub fn open_log(
                     .display()
             )));
         }
-        _ => {
-            std::fs::create_dir_all(&p.out)
-                .map_err(|e| Error::io(format!("creating {}", p.out.display()), e))?;
-            ProgressLog::create(&p.out, &p.header, &[])?
-        }
+        _ => ProgressLog::create(&p.out, &p.header, &[])?,
     };
-    Ok((log, done))
+    Ok((log.holding(lock), done))
 }
 
 fn unique(lines: &[ProgressLine]) -> usize {

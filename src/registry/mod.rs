@@ -180,6 +180,29 @@ macro_rules! recording_params {
     };
 }
 
+/// The parameters of fitting objectives that name recordings (`A | B`), whose file paths
+/// a suite anchors to its own folder (see [`anchor_recordings`]).
+pub const RECORDING_KEYS: [&str; 2] = ["recording", "validate"];
+
+/// A `recording` or `validate` value with its relative file paths made absolute against
+/// `base`; None when no spec changes.
+pub fn anchor_recordings(value: &str, base: &Path) -> Option<String> {
+    let mut changed = false;
+    let specs: Vec<String> = value
+        .split(" | ")
+        .map(
+            |s| match crate::objective::source::anchored(s.trim(), base) {
+                Some(a) => {
+                    changed = true;
+                    a
+                }
+                None => s.to_string(),
+            },
+        )
+        .collect();
+    changed.then(|| specs.join(" | "))
+}
+
 /// The training recordings (`recording = "A | B"`; one may be sliced by `first`/`samples`)
 /// and the labelled validation recordings (`validate = "A | B"`) named by a fitting
 /// objective.
@@ -737,4 +760,30 @@ pub fn default_optimizer(name: &str) -> Option<Arc<dyn OptimizerConfig>> {
     let k = kinds.iter().find(|k| k.name == name)?;
     let p = Params::defaults(k.params, name).ok()?;
     (k.build)(&p).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_relative_csv_paths_are_anchored() {
+        let base = Path::new("/s");
+        assert_eq!(
+            anchor_recordings(
+                "a.csv | twin:sine:freq=1 | $OPTBENCH_DATA/x.csv | /d/b.csv",
+                base
+            )
+            .as_deref(),
+            Some("/s/a.csv | twin:sine:freq=1 | $OPTBENCH_DATA/x.csv | /d/b.csv")
+        );
+        for kept in [
+            "twin:chirp",
+            "eq318:sine:freq=2",
+            "$OPTBENCH_DATA/b/c.csv",
+            "/abs.csv",
+        ] {
+            assert_eq!(anchor_recordings(kept, base), None, "{kept}");
+        }
+    }
 }

@@ -155,31 +155,16 @@ fn downsample(big: &[u8], w: u32, h: u32, ss: u32) -> Vec<u8> {
     out
 }
 
-/// Encodes RGB pixels as PNG through plotters' encoder into `.<name>.tmp-<pid>.png` next
-/// to `path`, then renames it into place.
+/// Encodes RGB pixels as PNG in memory (the encoder plotters' bitmap backend uses, with
+/// its defaults: the same bytes) and writes them atomically, so no temporary of a
+/// guessable name is opened.
 fn write_png(path: &Path, rgb: &[u8]) -> Result<()> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    let tmp = dir.join(format!(".{name}.tmp-{}.png", std::process::id()));
-    let encoded = (|| -> DrawResult {
-        let mut backend = BitMapBackend::new(&tmp, (WIDTH, HEIGHT));
-        backend.blit_bitmap((0, 0), (WIDTH, HEIGHT), rgb)?;
-        backend.present()?;
-        Ok(())
-    })();
-    let done = encoded.map_err(|e| draw_error(path, &*e)).and_then(|()| {
-        std::fs::File::open(&tmp)
-            .and_then(|f| f.sync_all())
-            .and_then(|()| std::fs::rename(&tmp, path))
-            .map_err(|e| Error::io(format!("writing {}", path.display()), e))
-    });
-    if done.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    done
+    use image::ImageEncoder;
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(rgb, WIDTH, HEIGHT, image::ColorType::Rgb8)
+        .map_err(|e| draw_error(path, &e))?;
+    atomic_write(path, &png)
 }
 
 #[cfg(test)]

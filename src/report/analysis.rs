@@ -9,7 +9,7 @@
 //! "Error" is the final value minus the known optimum (clipped at 0 against rounding in
 //! the optimum), or the value itself where no optimum is known (fitting costs).
 
-use crate::base::TrialSeed;
+use crate::base::{SafeName, TrialSeed};
 use crate::harness::TrialRecord;
 use crate::objective::Metric;
 use crate::stats::{
@@ -28,7 +28,7 @@ pub const ALPHA: f64 = 0.05;
 /// What the report needs to know of each objective beyond the traces.
 #[derive(Debug, Clone)]
 pub struct ObjectiveInfo {
-    pub id: String,
+    pub id: SafeName,
     pub dim: usize,
     pub targets: Vec<f64>,
     /// What the values are (e.g. `train free-run RMSE [mm]`); None: the objective's value.
@@ -95,7 +95,7 @@ pub struct PairTest {
 /// Everything about one objective.
 #[derive(Debug, Clone, Serialize)]
 pub struct ObjectiveStats {
-    pub id: String,
+    pub id: SafeName,
     pub dim: usize,
     pub label: Option<String>,
     pub optimum: Option<f64>,

@@ -18,38 +18,35 @@
 //! the trial's last evaluation as IOHanalyzer requires. Values are raw objective values;
 //! the comment line gives the known optimum where there is one.
 
-use crate::base::atomic_write;
 use crate::base::error::{Error, Result};
+use crate::base::{SafeName, atomic_write};
 use crate::harness::TrialRecord;
 use std::fmt::Write;
 use std::path::Path;
 
 /// One objective of the export: its suite position, id and dimension.
 pub struct IohObjective<'a> {
-    pub id: &'a str,
+    pub id: &'a SafeName,
     pub dim: usize,
 }
 
 /// Writes the IOHprofiler export of `records` under `dir` (typically `results/<suite>/ioh`).
-/// `objectives` lists the suite's objectives in suite order (their position is the funcId).
+/// `objectives` lists the suite's objectives in suite order (their position is the funcId),
+/// `optimizers` the suite's optimizers: only their names become folders, whatever a record
+/// says.
 pub fn export(
     dir: &Path,
     suite: &str,
     objectives: &[IohObjective<'_>],
+    optimizers: &[&SafeName],
     records: &[TrialRecord],
 ) -> Result<()> {
-    let mut optimizers: Vec<&str> = Vec::new();
-    for r in records {
-        if !optimizers.contains(&r.optimizer.as_str()) {
-            optimizers.push(&r.optimizer);
-        }
-    }
-    for opt in optimizers {
+    for &opt in optimizers {
         for (k, obj) in objectives.iter().enumerate() {
             let fid = k + 1;
             let mut runs: Vec<&TrialRecord> = records
                 .iter()
-                .filter(|r| r.optimizer == opt && r.objective == obj.id)
+                .filter(|r| *opt == r.optimizer && *obj.id == r.objective)
                 .collect();
             if runs.is_empty() {
                 continue;
@@ -136,13 +133,13 @@ mod tests {
             record("GA", 0, vec![(1, 3.0), (100, 0.25)], 100),
             record("PSO", 0, vec![(2, 1.0)], 100),
         ];
+        let name = |s: &str| SafeName::new(s).unwrap();
+        let (obj, ga, pso) = (name("griewank-2d"), name("GA"), name("PSO"));
         export(
             dir.path(),
             "tiny",
-            &[IohObjective {
-                id: "griewank-2d",
-                dim: 2,
-            }],
+            &[IohObjective { id: &obj, dim: 2 }],
+            &[&ga, &pso],
             &recs,
         )
         .unwrap();

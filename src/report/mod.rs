@@ -6,8 +6,8 @@ pub mod analysis;
 pub mod ioh;
 pub mod paper;
 
-use crate::base::atomic_write;
 use crate::base::error::{Error, Result};
+use crate::base::{SafeName, atomic_write};
 use crate::harness::TrialRecord;
 use crate::pipeline::store::{Provenance, read_traces};
 use crate::pipeline::suite::Suite;
@@ -63,6 +63,13 @@ impl StoredRun {
                     r.objective
                 )));
             };
+            if !suite.optimizers.iter().any(|o| o.id == r.optimizer) {
+                return Err(Error::Input(format!(
+                    "{}: a trace names optimizer `{}`, which the suite does not have",
+                    dir.display(),
+                    r.optimizer
+                )));
+            }
             presented.push(match obj.objective.presentation() {
                 Some(p) => r.presented(&p),
                 None => r.clone(),
@@ -193,7 +200,14 @@ pub fn generate(dir: &Path) -> Result<String> {
             dim: o.dim,
         })
         .collect();
-    ioh::export(&dir.join("ioh"), &run.suite.name, &objectives, &run.records)?;
+    let optimizers: Vec<&SafeName> = run.suite.optimizers.iter().map(|o| &o.id).collect();
+    ioh::export(
+        &dir.join("ioh"),
+        &run.suite.name,
+        &objectives,
+        &optimizers,
+        &run.records,
+    )?;
     Ok(paper::summary_markdown(&a))
 }
 
@@ -381,7 +395,7 @@ pub fn compare(a_dir: &Path, b_dir: &Path) -> Result<String> {
         .zip(&adjusted)
         .map(|((obj, opt, ma, mb, p, a12, same), h)| {
             vec![
-                obj.clone(),
+                obj.to_string(),
                 opt.clone(),
                 sig(*ma, 3),
                 sig(*mb, 3),

@@ -50,7 +50,7 @@ pub fn summary_markdown(a: &Analysis) -> String {
                 sig(c.median_ci.1, 3)
             );
             rows.push(vec![
-                o.id.clone(),
+                o.id.to_string(),
                 c.optimizer.clone(),
                 if i == o.best {
                     format!("**{med}**")
@@ -126,7 +126,11 @@ pub fn fixed_budget_markdown(a: &Analysis) -> String {
                 .zip(meds)
                 .map(|(b, m)| format!("{}: {}", b, sig(*m, 3)))
                 .collect();
-            rows.push(vec![o.id.clone(), c.optimizer.clone(), cells.join(" | ")]);
+            rows.push(vec![
+                o.id.to_string(),
+                c.optimizer.clone(),
+                cells.join(" | "),
+            ]);
         }
     }
     markdown(
@@ -182,7 +186,7 @@ pub fn pairwise_markdown(a: &Analysis) -> String {
     for o in &a.objectives {
         for p in &o.pairs {
             rows.push(vec![
-                o.id.clone(),
+                o.id.to_string(),
                 format!("{} vs {}", p.a, p.b),
                 sig(p.p_value, 3),
                 sig(p.p_holm, 3),
@@ -611,7 +615,7 @@ mod tests {
             r.push(rec("bad", t, 5.0 + t as f64));
         }
         let info = [ObjectiveInfo {
-            id: "f_1".into(),
+            id: crate::base::SafeName::new("f_1").unwrap(),
             dim: 1,
             targets: vec![1.0, 0.05],
             label: None,

@@ -41,7 +41,9 @@
 use super::closed_loop::Guard;
 use super::reference::Reference;
 use super::run::{ControllerSpec, DEFAULT_TRANSIENT_S, RunSpec};
+use crate::base::SafeName;
 use crate::base::error::Result;
+use crate::base::name::RESERVED_TABLE_IDS;
 use crate::pipeline::suite::PaperTable;
 use crate::pipeline::suite::text::{self, Fields, Header, SuiteText, value_text};
 use serde::Deserialize;
@@ -124,14 +126,16 @@ struct RawPlant {
 /// A named controller of a suite.
 #[derive(Debug, Clone)]
 pub struct ControllerEntry {
-    pub id: String,
+    /// Names figure and signal files.
+    pub id: SafeName,
     pub spec: ControllerSpec,
 }
 
 /// A plant of a suite (twin overrides, and the twin its internal models are identified on).
 #[derive(Debug, Clone)]
 pub struct PlantEntry {
-    pub id: String,
+    /// Names figure and signal files.
+    pub id: SafeName,
     pub twin: String,
     pub model_twin: Option<String>,
     pub description: Option<String>,
@@ -145,7 +149,8 @@ pub struct PlantEntry {
 pub struct ControlSuite {
     pub path: PathBuf,
     pub text: String,
-    pub name: String,
+    /// Names the results folder.
+    pub name: SafeName,
     pub description: Option<String>,
     pub seed: u64,
     pub trials: usize,
@@ -206,11 +211,11 @@ impl ControlSuite {
                     }),
             }
             .map_err(|e| st.at(line_at, format!("[control] references: {e}")))?;
-            if !text::valid_name(&reference.name) {
+            if let Err(why) = SafeName::new(&reference.name) {
                 return Err(st.at(
                     line_at,
                     format!(
-                        "reference `{}`: give it an `id` (letters, digits, '-', '_', '.'): {{ id = \"...\", spec = \"...\" }}",
+                        "reference `{}` {why}; give it an `id`: {{ id = \"...\", spec = \"...\" }}",
                         reference.name
                     ),
                 ));
@@ -253,7 +258,7 @@ impl ControlSuite {
             let id = st
                 .take_str(&mut fields, "id")?
                 .unwrap_or_else(|| kind.to_string());
-            st.check_id(&id, &mut ids, line, "controller")?;
+            let id = st.check_id(&id, &mut ids, line, "controller", &[])?;
             let params: Vec<(String, String)> = fields
                 .iter()
                 .map(|(k, v)| (k.clone(), value_text(v.get_ref())))
@@ -287,11 +292,12 @@ impl ControlSuite {
         };
         let mut plants: Vec<PlantEntry> = Vec::new();
         let mut plant_ids = BTreeSet::new();
+        let mut stems_seen = BTreeSet::new();
         for p in &raw_plants {
             let line = st.line(p.span().start);
             let rp = p.get_ref();
             let err = |m: String| st.on(line, format!("plant `{}`: {m}", rp.id));
-            st.check_id(&rp.id, &mut plant_ids, line, "plant")?;
+            let id = st.check_id(&rp.id, &mut plant_ids, line, "plant", &[])?;
             let select =
                 |names: &Option<Vec<String>>, all: Vec<&str>, what: &str| -> Result<Vec<usize>> {
                     match names {
@@ -320,7 +326,7 @@ impl ControlSuite {
                 "controllers",
             )?;
             let entry = PlantEntry {
-                id: rp.id.clone(),
+                id,
                 twin: rp.twin.clone(),
                 model_twin: rp.model_twin.clone(),
                 description: rp.description.clone(),
@@ -338,13 +344,31 @@ impl ControlSuite {
             }
             .validate()
             .map_err(|e| err(e.to_string()))?;
+            // Figure and signal files join ids with '_', which ids may contain too.
+            let mut stems: Vec<String> = Vec::new();
+            for &r in &entry.references {
+                let reference = &references[r].name;
+                stems.push(format!("rmse_{}_{reference}", entry.id));
+                for &c in &entry.controllers {
+                    stems.push(format!("{}_{}_{reference}_", controllers[c].id, entry.id));
+                }
+            }
+            for stem in stems {
+                if !stems_seen.insert(stem.to_ascii_lowercase()) {
+                    return Err(err(format!(
+                        "its figure files `{stem}...` would overwrite another run's (ids are joined with '_'); rename a controller, plant or reference"
+                    )));
+                }
+            }
             plants.push(entry);
         }
 
         let mut tables = Vec::new();
+        let mut ids = BTreeSet::new();
         for t in &raw.tables {
             let line = st.line(t.span().start);
             let tb = t.get_ref();
+            st.check_id(&tb.id, &mut ids, line, "table", RESERVED_TABLE_IDS)?;
             check_table(tb, &controllers, &plants, &references)
                 .map_err(|m| st.on(line, format!("table `{}`: {m}", tb.id)))?;
             tables.push(tb.clone());
@@ -565,6 +589,16 @@ mod tests {
         let escape = SMALL.replace("id = \"P\"\n", "id = \"../P\"\n");
         let m = error(&escape);
         assert!(m.contains("c.toml:10") && m.contains("use letters"), "{m}");
+        // `P_x` on `twin` and `P` on `x_twin` would draw into the same files.
+        let joined = SMALL
+            .replace("id = \"PI\"", "id = \"P_x\"")
+            .replace("id = \"creep\"", "id = \"x_twin\"")
+            .replace("controllers = [\"PI\"]", "controllers = [\"P\"]");
+        let m = error(&joined);
+        assert!(
+            m.contains("c.toml:23") && m.contains("P_x_twin_sine5_"),
+            "{m}"
+        );
         let late = SMALL.replace("transient = 0.2", "transient = 0.6");
         assert!(error(&late).contains("`transient` = 0.6"));
     }

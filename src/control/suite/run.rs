@@ -116,8 +116,8 @@ pub fn run_suite(suite: &ControlSuite, threads: Option<usize>, out: &Path) -> Re
                 let model = s.map(|s| model_of(s, r.trial));
                 let o = spec.execute(model, nseed)?;
                 let record = RunRecord {
-                    controller: suite.controllers[r.controller].id.clone(),
-                    plant: plant.id.clone(),
+                    controller: suite.controllers[r.controller].id.to_string(),
+                    plant: plant.id.to_string(),
                     reference: spec.reference.name.clone(),
                     trial: r.trial,
                     noise_seed: nseed,
@@ -201,7 +201,7 @@ pub fn run_suite(suite: &ControlSuite, threads: Option<usize>, out: &Path) -> Re
                             })
                             .map(|r| finite_or_inf(r.metrics.rmse_mm))
                             .collect();
-                        (id.clone(), v)
+                        (id.to_string(), v)
                     })
                     .collect();
                 let stem = format!("rmse_{}_{}", p.id, reference);
@@ -319,6 +319,7 @@ pub fn run_file(path: &Path, o: &RunOverrides) -> Result<String> {
             out.display()
         )));
     }
+    let _lock = crate::pipeline::store::lock_folder(&out)?;
     let text = run_suite(&suite, o.threads, &out)?;
     Ok(if o.quiet {
         String::new()

@@ -91,8 +91,8 @@ pub(super) fn cell_stats(suite: &ControlSuite, runs: &[RunRecord]) -> Vec<CellSt
                     .collect();
                 fail_t.sort_by(f64::total_cmp);
                 cells.push(CellStats {
-                    controller: c.clone(),
-                    plant: p.id.clone(),
+                    controller: c.to_string(),
+                    plant: p.id.to_string(),
                     reference: r.clone(),
                     trials: v.len(),
                     failures: fail_t.len(),
@@ -281,7 +281,7 @@ pub fn comparison_markdown(suite: &ControlSuite, res: &ControlResults) -> String
                     };
                     let wins = pa.iter().zip(&pb).filter(|(x, y)| x < y).count();
                     rows.push(vec![
-                        p.id.clone(),
+                        p.id.to_string(),
                         r.clone(),
                         format!("{ca} vs {cb}"),
                         ratio,

@@ -26,6 +26,16 @@ pub fn merge(dirs: &[PathBuf], out: &Path, quiet: bool, report: Option<Report>) 
                 crate::pipeline::store::progress::PROGRESS_FILE
             ))
         })?;
+        for w in &p.skipped {
+            eprintln!("warning: {w}");
+        }
+        if !p.header_intact {
+            return Err(Error::Input(format!(
+                "{}: the header of its {} fails its checksum (edited or damaged); `optbench run --force-resume` in that folder rewrites it, keeping the stored trials",
+                d.display(),
+                crate::pipeline::store::progress::PROGRESS_FILE
+            )));
+        }
         logs.push((d, p));
     }
     let Some((first_dir, first)) = logs.first() else {
@@ -124,8 +134,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path, quiet: bool, report: Option<Report>) 
         .iter()
         .map(|k| found.remove(k).expect("checked"))
         .collect();
-    std::fs::create_dir_all(out)
-        .map_err(|e| Error::io(format!("creating {}", out.display()), e))?;
+    let _lock = crate::pipeline::store::lock_folder(out)?;
     let header = ProgressHeader {
         shard: None,
         planned: plan.len(),

@@ -9,11 +9,14 @@
 //!   traces.jsonl      one TrialRecord per line, in plan order
 //!   summary.json      per objective x optimizer: finals and their statistics
 //!   progress.jsonl    every finished trial, appended as it ends (resume, shards, merge)
+//!   .optbench.lock    held by the one `run`, `report` or `merge` writing the folder
 //! ```
 
 pub mod folder;
+pub mod lock;
 pub mod progress;
 pub mod summary;
 
 pub use folder::{Provenance, read_traces, write_run};
+pub use lock::{FolderLock, lock_folder};
 pub use summary::{CellSummary, Summary, summarize};

@@ -2,11 +2,21 @@
 //!
 //! The first line is a [`ProgressHeader`] naming the run (suite fingerprint, build, the
 //! overrides of the command line, the shard); every further line is one finished trial,
-//! `{"key": ..., "record": ...}`, written with a single `write` the moment the trial ends.
-//! A process killed at any point (SIGKILL included) leaves every finished trial on disk and
-//! at most one torn last line, which [`read_progress`] ignores and [`ProgressLog::resume`]
-//! cuts off before appending. Lines are not fsynced one by one: the log survives a killed
-//! process, not a power cut in the last seconds.
+//! `{"crc": ..., "key": ..., "record": ...}`, written with a single `write` the moment the
+//! trial ends. `crc` is the CRC-32 (hex) of the line's bytes after the `"crc":"...",`
+//! prefix, so the line stays plain JSON and is checked byte for byte.
+//!
+//! What the reader ([`read_progress`]) does with damage, anywhere in the file: a torn last
+//! line (a kill mid-write) is dropped and cut off before the next append; a line that fails
+//! its checksum or does not parse (a disk that filled up mid-write, an edited value) is
+//! skipped with a warning naming file and line, and its trial runs again; a line that a
+//! failed write left without its newline is separated from the complete line appended
+//! after it, which is kept. Logs written before the checksum (no `crc`) are read as they
+//! are. A finished trial is never lost to damage elsewhere in the log.
+//!
+//! Lines are not fsynced one by one: the log survives a killed process (SIGKILL included)
+//! and a full disk, but a power cut may lose the trials of the last seconds, which then run
+//! again; the result files are fsynced before their rename ([`crate::base::atomic_write`]).
 
 use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
@@ -15,6 +25,9 @@ use std::fs::{File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
+
+/// How every checksummed line starts: `{"crc":"` then 8 hex digits and `",`.
+const CRC_PREFIX: &[u8] = b"{\"crc\":\"";
 
 /// The log's file name inside a results folder.
 pub const PROGRESS_FILE: &str = "progress.jsonl";
@@ -63,6 +76,54 @@ pub struct Progress {
     pub valid_len: u64,
     /// Whether a torn (incomplete or unreadable) last line was dropped.
     pub torn: bool,
+    /// Whether the header passed its checksum (or has none: an older log).
+    pub header_intact: bool,
+    /// One warning per damaged line skipped before the last (`file:line: why`); their
+    /// trials run again.
+    pub skipped: Vec<String>,
+}
+
+/// `json` (an object) as one checksummed line: `{"crc":"XXXXXXXX",` + the rest + newline.
+fn checksummed(json: &[u8]) -> Vec<u8> {
+    let rest = &json[1..];
+    let mut line = Vec::with_capacity(json.len() + 20);
+    line.extend_from_slice(CRC_PREFIX);
+    line.extend_from_slice(format!("{:08x}\",", crc32fast::hash(rest)).as_bytes());
+    line.extend_from_slice(rest);
+    line.push(b'\n');
+    line
+}
+
+/// Whether a line (without newline) carries a checksum, and if so whether it holds.
+#[derive(Debug, PartialEq)]
+enum Check {
+    Holds,
+    Fails,
+    Absent,
+}
+
+fn check(line: &[u8]) -> Check {
+    let Some(tail) = line.strip_prefix(CRC_PREFIX) else {
+        return Check::Absent;
+    };
+    let stored = tail
+        .get(..8)
+        .and_then(|h| std::str::from_utf8(h).ok())
+        .and_then(|h| u32::from_str_radix(h, 16).ok());
+    match (stored, tail.get(8..10), tail.get(10..)) {
+        (Some(crc), Some(b"\","), Some(rest)) if crc32fast::hash(rest) == crc => Check::Holds,
+        _ => Check::Fails,
+    }
+}
+
+/// A trial line read back, or why not.
+fn trial_line(line: &[u8]) -> std::result::Result<ProgressLine, String> {
+    match check(line) {
+        Check::Fails => Err("fails its checksum (edited or damaged)".into()),
+        Check::Holds | Check::Absent => {
+            serde_json::from_slice(line).map_err(|e| format!("not a trial line: {e}"))
+        }
+    }
 }
 
 /// Reads `dir/progress.jsonl`; `Ok(None)` if there is none.
@@ -74,7 +135,9 @@ pub fn read_progress(dir: &Path) -> Result<Option<Progress>> {
         Err(e) => return Err(Error::io(format!("reading {}", path.display()), e)),
     };
     let mut header: Option<ProgressHeader> = None;
+    let mut header_intact = true;
     let mut lines = Vec::new();
+    let mut skipped = Vec::new();
     let mut valid_len = 0u64;
     let mut torn = false;
     let mut start = 0usize;
@@ -89,6 +152,7 @@ pub fn read_progress(dir: &Path) -> Result<Option<Progress>> {
         let line = &bytes[start..start + end];
         let next = start + end + 1;
         if header.is_none() {
+            header_intact = check(line) != Check::Fails;
             let h: ProgressHeader = serde_json::from_slice(line).map_err(|e| {
                 Error::at(
                     &path,
@@ -104,17 +168,29 @@ pub fn read_progress(dir: &Path) -> Result<Option<Progress>> {
                 ));
             }
             header = Some(h);
-        } else {
-            match serde_json::from_slice::<ProgressLine>(line) {
+        } else if !line.iter().all(u8::is_ascii_whitespace) {
+            match trial_line(line) {
                 Ok(l) => lines.push(l),
-                Err(e) if next >= bytes.len() => {
-                    // Only the very last line may be damaged (a kill mid-write).
-                    let _ = e;
-                    torn = true;
-                    break;
-                }
-                Err(e) => {
-                    return Err(Error::at(&path, number, format!("not a trial line: {e}")));
+                Err(why) => {
+                    // A write cut short and followed by a complete line: keep that line.
+                    let salvaged = (1..line.len())
+                        .rev()
+                        .filter(|&i| line[i..].starts_with(CRC_PREFIX))
+                        .find_map(|i| {
+                            (check(&line[i..]) == Check::Holds)
+                                .then(|| trial_line(&line[i..]).ok())
+                                .flatten()
+                        });
+                    let kept = if salvaged.is_some() {
+                        "; the complete trial line after it is kept"
+                    } else {
+                        ""
+                    };
+                    skipped.push(format!(
+                        "{}:{number}: {why}: line skipped, its trial runs again{kept}",
+                        path.display()
+                    ));
+                    lines.extend(salvaged);
                 }
             }
         }
@@ -130,13 +206,24 @@ pub fn read_progress(dir: &Path) -> Result<Option<Progress>> {
         lines,
         valid_len,
         torn,
+        header_intact,
+        skipped,
     }))
 }
 
 /// An open log that trials are appended to, from any thread.
 pub struct ProgressLog {
     path: PathBuf,
-    file: Mutex<File>,
+    file: Mutex<Appender>,
+    /// The folder's lock, held as long as the log is open for this run.
+    lock: Option<super::lock::FolderLock>,
+}
+
+struct Appender {
+    file: File,
+    /// A write failed (or was cut short) and may have left part of a line: the next line
+    /// starts with a newline, so that part stays a line of its own.
+    torn: bool,
 }
 
 impl ProgressLog {
@@ -144,11 +231,9 @@ impl ProgressLog {
     /// a temporary file and renamed, so an old log is replaced whole or not at all).
     pub fn create(dir: &Path, header: &ProgressHeader, lines: &[ProgressLine]) -> Result<Self> {
         let path = dir.join(PROGRESS_FILE);
-        let mut bytes = serde_json::to_vec(header).expect("serialisable");
-        bytes.push(b'\n');
+        let mut bytes = checksummed(&serde_json::to_vec(header).expect("serialisable"));
         for l in lines {
-            serde_json::to_writer(&mut bytes, l).expect("serialisable");
-            bytes.push(b'\n');
+            bytes.extend(checksummed(&serde_json::to_vec(l).expect("serialisable")));
         }
         crate::base::atomic_write(&path, &bytes)?;
         Self::open(path)
@@ -174,22 +259,47 @@ impl ProgressLog {
             .map_err(|e| Error::io(format!("opening {}", path.display()), e))?;
         Ok(ProgressLog {
             path,
-            file: Mutex::new(file),
+            file: Mutex::new(Appender { file, torn: false }),
+            lock: None,
         })
     }
 
-    /// Appends one finished trial as one line, in one write.
+    /// This log, keeping the folder locked until it is dropped.
+    pub fn holding(mut self, lock: super::lock::FolderLock) -> Self {
+        self.lock = Some(lock);
+        self
+    }
+
+    /// Appends one finished trial as one checksummed line, in one `write`.
     pub fn append(&self, key: &str, record: &TrialRecord) -> Result<()> {
         #[derive(Serialize)]
         struct Line<'a> {
             key: &'a str,
             record: &'a TrialRecord,
         }
-        let mut bytes = serde_json::to_vec(&Line { key, record }).expect("serialisable");
-        bytes.push(b'\n');
-        let mut f = self.file.lock().unwrap_or_else(|p| p.into_inner());
-        f.write_all(&bytes)
-            .map_err(|e| Error::io(format!("appending to {}", self.path.display()), e))
+        let line = checksummed(&serde_json::to_vec(&Line { key, record }).expect("serialisable"));
+        let mut a = self.file.lock().unwrap_or_else(|p| p.into_inner());
+        let bytes = if a.torn {
+            [&b"\n"[..], &line].concat()
+        } else {
+            line
+        };
+        let written = a.file.write(&bytes);
+        a.torn = !matches!(written, Ok(n) if n == bytes.len());
+        match written {
+            Ok(n) if n == bytes.len() => Ok(()),
+            Ok(n) => Err(Error::io(
+                format!("appending to {}", self.path.display()),
+                std::io::Error::new(
+                    std::io::ErrorKind::WriteZero,
+                    format!("{n} of {} bytes written (disk full?)", bytes.len()),
+                ),
+            )),
+            Err(e) => Err(Error::io(
+                format!("appending to {}", self.path.display()),
+                e,
+            )),
+        }
     }
 }
 
@@ -263,23 +373,73 @@ mod tests {
     }
 
     #[test]
-    fn damage_before_the_last_line_is_an_error_with_its_line() {
+    fn damage_anywhere_skips_that_line_only_with_a_warning_naming_it() {
         let dir = tempfile::tempdir().unwrap();
         let log = ProgressLog::create(dir.path(), &header(), &[]).unwrap();
-        log.append("k0", &record(0)).unwrap();
+        for k in 0..4 {
+            log.append(&format!("k{k}"), &record(k)).unwrap();
+        }
         drop(log);
         let path = dir.path().join(PROGRESS_FILE);
         let text = std::fs::read_to_string(&path).unwrap();
-        let mut lines: Vec<&str> = text.lines().collect();
-        let good = lines[1].to_string();
-        lines.insert(1, "garbage");
+        let mut lines: Vec<String> = text.lines().map(String::from).collect();
+        // Line 2 (k0): garbage; line 3 (k1): a value edited, still valid JSON; line 4
+        // (k2): cut short without its newline by a full disk, so k3 follows on its line.
+        lines[1] = "garbage".into();
+        lines[2] = lines[2].replace("\"budget\":10", "\"budget\":11");
+        let half = lines[3].len() / 2;
+        let k3 = lines.remove(4);
+        lines[3] = format!("{}{k3}", &lines[3][..half]);
         std::fs::write(&path, lines.join("\n") + "\n").unwrap();
-        let e = read_progress(dir.path()).unwrap_err().to_string();
-        assert!(e.contains("progress.jsonl:2:"), "{e}");
-        assert!(good.contains("k0"));
+        let p = read_progress(dir.path()).unwrap().unwrap();
+        assert!(p.header_intact && !p.torn);
+        assert_eq!(
+            p.lines.iter().map(|l| l.key.as_str()).collect::<Vec<_>>(),
+            ["k3"]
+        );
+        assert_eq!(p.skipped.len(), 3, "{:?}", p.skipped);
+        assert!(p.skipped[0].contains("progress.jsonl:2: not a trial line"));
+        assert!(p.skipped[1].contains("progress.jsonl:3: fails its checksum"));
+        assert!(p.skipped[2].contains("progress.jsonl:4:"));
+        assert!(p.skipped[2].contains("after it is kept"));
+        // An edited header is noticed, not trusted.
+        lines[0] = lines[0].replace("\"seed\":1", "\"seed\":2");
+        std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+        assert!(!read_progress(dir.path()).unwrap().unwrap().header_intact);
         // No log, or a header cut short, means nothing finished.
         assert!(read_progress(&dir.path().join("none")).unwrap().is_none());
         std::fs::write(&path, "{\"format\":").unwrap();
         assert!(read_progress(dir.path()).unwrap().is_none());
+    }
+
+    #[test]
+    fn logs_from_before_the_checksum_still_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut text = serde_json::to_string(&header()).unwrap() + "\n";
+        text += r#"{"key":"k0","record":{"objective":"o","optimizer":"p","trial":0,"seed":"00","budget":10,"evaluations":10,"best":null,"best_x":[0.5],"optimum":0.0,"stopped_at_target":false,"nonfinite":10,"wall_s":0.0,"improvements":[],"checkpoints":[[10,null]]}}"#;
+        std::fs::write(dir.path().join(PROGRESS_FILE), text + "\n").unwrap();
+        let p = read_progress(dir.path()).unwrap().unwrap();
+        assert!(p.header_intact && p.skipped.is_empty());
+        assert_eq!(p.lines[0].record.best, f64::INFINITY);
+        assert_eq!(p.lines[0].record.checkpoints, [(10, f64::INFINITY)]);
+    }
+
+    #[test]
+    fn a_failed_write_leaves_the_next_line_on_a_line_of_its_own() {
+        let dir = tempfile::tempdir().unwrap();
+        let log = ProgressLog::create(dir.path(), &header(), &[]).unwrap();
+        log.append("k0", &record(0)).unwrap();
+        // What a full disk leaves: part of a line, and a writer that knows it failed.
+        let path = dir.path().join(PROGRESS_FILE);
+        let mut f = OpenOptions::new().append(true).open(&path).unwrap();
+        f.write_all(b"{\"crc\":\"0000").unwrap();
+        log.file.lock().unwrap().torn = true;
+        log.append("k2", &record(2)).unwrap();
+        let p = read_progress(dir.path()).unwrap().unwrap();
+        assert_eq!(
+            p.lines.iter().map(|l| l.key.as_str()).collect::<Vec<_>>(),
+            ["k0", "k2"]
+        );
+        assert_eq!(p.skipped.len(), 1, "{:?}", p.skipped);
     }
 }

@@ -10,16 +10,26 @@ use serde::{Deserialize, Serialize};
 pub struct CellSummary {
     pub objective: String,
     pub optimizer: String,
-    /// Final best value of every trial, in trial order.
+    /// Final best value of every trial, in trial order. These and the statistics may be
+    /// infinite (a trial with no finite value): stored as "inf"/"-inf"/"nan", never null
+    /// (see [`crate::base::json_float`]).
+    #[serde(with = "crate::base::json_float::many")]
     pub finals: Vec<f64>,
+    #[serde(with = "crate::base::json_float::one")]
     pub median: f64,
+    #[serde(with = "crate::base::json_float::one")]
     pub mean: f64,
     /// Sample standard deviation.
+    #[serde(with = "crate::base::json_float::one")]
     pub std: f64,
+    #[serde(with = "crate::base::json_float::one")]
     pub min: f64,
+    #[serde(with = "crate::base::json_float::one")]
     pub max: f64,
     /// First and third quartiles (type 7).
+    #[serde(with = "crate::base::json_float::one")]
     pub q1: f64,
+    #[serde(with = "crate::base::json_float::one")]
     pub q3: f64,
     /// Evaluations spent, summed over the trials (exact).
     pub evaluations: u64,

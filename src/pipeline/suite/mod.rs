@@ -28,13 +28,14 @@
 //! Errors are measured to the objective's known optimum, or to 0 where none is known (cost
 //! functions), so `targets` and `stop_at` mean the same thing for both.
 
-use crate::base::TrialSeed;
 use crate::base::error::Result;
 use crate::base::limits;
+use crate::base::name::RESERVED_TABLE_IDS;
 use crate::base::params::Params;
+use crate::base::{SafeName, TrialSeed};
 use crate::harness::OptimizerConfig;
 use crate::objective::Objective;
-use crate::registry::{objective_kinds, optimizer_kinds};
+use crate::registry::{RECORDING_KEYS, anchor_recordings, objective_kinds, optimizer_kinds};
 use serde::Deserialize;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -70,8 +71,8 @@ struct RawSuite {
 
 /// One objective of a suite, built and validated.
 pub struct ObjectiveEntry {
-    /// Name in results.
-    pub id: String,
+    /// Name in results (and in plot and IOHprofiler file names).
+    pub id: SafeName,
     pub kind: &'static str,
     pub objective: Arc<dyn Objective>,
     /// Evaluations per trial.
@@ -99,7 +100,8 @@ impl ObjectiveEntry {
 
 /// One optimizer of a suite, validated.
 pub struct OptimizerEntry {
-    pub id: String,
+    /// Name in results (and the IOHprofiler export's folder).
+    pub id: SafeName,
     pub kind: &'static str,
     pub config: Arc<dyn OptimizerConfig>,
     pub params: Params,
@@ -108,9 +110,12 @@ pub struct OptimizerEntry {
 /// A validated suite.
 pub struct Suite {
     pub path: PathBuf,
-    /// The file as read, copied into the results.
+    /// The file as read with its recordings' relative paths made absolute: what a results
+    /// folder stores, so its copy finds the same files wherever it lies (`report`,
+    /// `--resume`, `merge` read it), and what the run's fingerprint hashes.
     pub text: String,
-    pub name: String,
+    /// Names the results folder.
+    pub name: SafeName,
     pub description: Option<String>,
     pub seed: u64,
     pub trials: usize,
@@ -162,9 +167,21 @@ impl Suite {
         let mut objectives = Vec::new();
         let mut selections = Vec::new();
         let mut ids = BTreeSet::new();
+        let base = path.parent().unwrap_or(Path::new(""));
+        let mut anchored = Vec::new();
         for entry in &raw.objectives {
             let (line, mut fields) = (st.line(entry.span().start), entry.get_ref().clone());
             let kind = st.take_kind(&kinds, |k| k.name, &mut fields, line, "objective")?;
+            for key in RECORDING_KEYS {
+                if let Some(v) = fields.get_mut(key)
+                    && kind.params.iter().any(|s| s.name == key)
+                    && let toml::Value::String(spec) = v.get_ref()
+                    && let Some(a) = anchor_recordings(spec, base)
+                {
+                    anchored.push((v.span(), a.clone()));
+                    *v.get_mut() = toml::Value::String(a);
+                }
+            }
             let id = st.take_str(&mut fields, "id")?;
             let own_budget = st.take_int(&mut fields, "budget")?;
             let own_targets = st.take_floats(&mut fields, "targets")?;
@@ -176,7 +193,7 @@ impl Suite {
             let params = Params::validate(kind.params, &st.given(fields), st.origin(line, what))?;
             let objective = (kind.build)(&params)?;
             let id = id.unwrap_or_else(|| format!("{}-{}d", kind.name, objective.dim()));
-            st.check_id(&id, &mut ids, line, "objective")?;
+            let id = st.check_id(&id, &mut ids, line, "objective", &[])?;
             let budget = match own_budget {
                 Some((b, l)) => positive_budget(b).map_err(|m| st.on(l, m))?,
                 None => budget,
@@ -214,7 +231,7 @@ impl Suite {
             let polish = st.take_float(&mut fields, "polish")?;
             let polish_line = fields.get("polish_with").map(|v| st.line(v.span().start));
             let polish_with = st.take_str(&mut fields, "polish_with")?;
-            st.check_id(&id, &mut ids, line, "optimizer")?;
+            let id = st.check_id(&id, &mut ids, line, "optimizer", &[])?;
             let params = Params::validate(
                 kind.params,
                 &st.given(fields),
@@ -299,17 +316,25 @@ impl Suite {
         // Metric names come from evaluating an objective's metrics (a simulation of each of
         // its recordings), so each objective is asked once for all tables.
         let mut metric_names = BTreeMap::new();
+        let mut ids = BTreeSet::new();
         for t in &raw.tables {
             let line = st.line(t.span().start);
+            st.check_id(&t.get_ref().id, &mut ids, line, "table", RESERVED_TABLE_IDS)?;
             check_table(t.get_ref(), &objectives, &optimizers, &mut metric_names)
                 .map_err(|m| st.on(line, format!("table `{}`: {m}", t.get_ref().id)))?;
             tables.push(t.get_ref().clone());
         }
 
+        // Replaced back to front, so the spans ahead stay valid.
+        anchored.sort_by_key(|(span, _)| span.start);
+        let mut text = text.to_string();
+        for (span, a) in anchored.into_iter().rev() {
+            text.replace_range(span, &toml::Value::String(a).to_string());
+        }
         let suite = Suite {
             tables,
             path: path.to_path_buf(),
-            text: text.to_string(),
+            text,
             name,
             description: raw.description,
             seed,
@@ -398,7 +423,7 @@ fn check_table(
                 ));
             }
             if let Some(m) = r.metric.as_ref().or(t.value.as_ref()) {
-                let names = names.entry(obj.id.clone()).or_insert_with(|| {
+                let names = names.entry(obj.id.to_string()).or_insert_with(|| {
                     let b = obj.objective.bounds();
                     let mid: Vec<f64> = b
                         .lower()

@@ -1,6 +1,8 @@
 //! Tables laid out like a paper's, with the published numbers beside ours: the layout both
 //! kinds of suite declare with `[[table]]` (cells name what ran; the report fills them).
 
+use crate::base::SafeName;
+use crate::base::name::RESERVED_TABLE_IDS;
 use serde::Deserialize;
 
 /// A table laid out like one in a paper, with its published numbers beside ours:
@@ -19,7 +21,9 @@ use serde::Deserialize;
 #[derive(Debug, Clone, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PaperTable {
-    pub id: String,
+    /// Names `tables/<id>.md` and `.tex`.
+    #[serde(deserialize_with = "table_id")]
+    pub id: SafeName,
     pub title: String,
     #[serde(default)]
     pub value: Option<String>,
@@ -30,6 +34,14 @@ pub struct PaperTable {
     pub reference: Option<String>,
     pub columns: Vec<String>,
     pub rows: Vec<PaperRow>,
+}
+
+/// A table's `id`, checked as it is read (so the message points at its line): a name, and
+/// not one of a built-in table.
+fn table_id<'de, D: serde::Deserializer<'de>>(d: D) -> Result<SafeName, D::Error> {
+    let s = String::deserialize(d)?;
+    SafeName::not_reserved(&s, RESERVED_TABLE_IDS)
+        .map_err(|why| serde::de::Error::custom(format!("table id {s:?} {why}")))
 }
 
 /// One row of a [`PaperTable`].

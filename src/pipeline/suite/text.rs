@@ -3,6 +3,7 @@
 //! paths, and typed fields taken out of free-form entries (`[[objective]]`, `[[optimizer]]`,
 //! `[[controller]]`), so every suite error names the file, the line and the key alike.
 
+use crate::base::SafeName;
 use crate::base::error::{Error, Result};
 use crate::base::limits::MAX_TRIALS;
 use crate::base::params::Origin;
@@ -23,7 +24,7 @@ pub struct SuiteText<'a> {
 
 /// The header every suite starts with.
 pub struct Header {
-    pub name: String,
+    pub name: SafeName,
     pub seed: u64,
     pub trials: usize,
 }
@@ -32,15 +33,6 @@ pub struct Header {
 pub fn read(path: &Path) -> Result<String> {
     std::fs::read_to_string(path)
         .map_err(|e| Error::Input(format!("{}: cannot read suite: {e}", path.display())))
-}
-
-/// Whether `s` may name a suite or an entry: it becomes a file or folder name, so letters,
-/// digits, '-', '_' and '.', not starting with '.'.
-pub fn valid_name(s: &str) -> bool {
-    !s.is_empty()
-        && !s.starts_with('.')
-        && s.chars()
-            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
 }
 
 /// A TOML value as a parameter's text (strings without their quotes).
@@ -97,15 +89,13 @@ impl<'a> SuiteText<'a> {
         seed: &Spanned<i64>,
         trials: &Spanned<i64>,
     ) -> Result<Header> {
-        let n = name.get_ref().clone();
-        if !valid_name(&n) {
-            return Err(self.at(
+        let n = name.get_ref();
+        let n = SafeName::new(n).map_err(|why| {
+            self.at(
                 name.span().start,
-                format!(
-                    "`name` = {n:?}: use letters, digits, '-', '_' or '.' (it names the results folder)"
-                ),
-            ));
-        }
+                format!("`name` = {n:?} {why} (it names the results folder)"),
+            )
+        })?;
         let s = u64::try_from(*seed.get_ref())
             .map_err(|_| self.at(seed.span().start, "`seed` must be >= 0"))?;
         let t = *trials.get_ref();
@@ -122,27 +112,28 @@ impl<'a> SuiteText<'a> {
         })
     }
 
-    /// Checks that an entry's `id` is a valid name and not used before in `seen`.
+    /// An entry's `id` as a [`SafeName`] (not one of `reserved`), refused when `seen` has it
+    /// already, in any case: ids name files, and case-insensitive file systems would
+    /// merge `A` and `a`.
     pub fn check_id(
         &self,
         id: &str,
         seen: &mut BTreeSet<String>,
         line: usize,
         what: &str,
-    ) -> Result<()> {
-        if !valid_name(id) {
+        reserved: &[&str],
+    ) -> Result<SafeName> {
+        let name = SafeName::not_reserved(id, reserved)
+            .map_err(|why| self.on(line, format!("{what} id {id:?} {why}")))?;
+        if !seen.insert(id.to_ascii_lowercase()) {
             return Err(self.on(
                 line,
-                format!("{what} id {id:?}: use letters, digits, '-', '_' or '.'"),
+                format!(
+                    "{what} id `{id}` is used twice (ids differing only in case count as one); give each entry a distinct `id`"
+                ),
             ));
         }
-        if !seen.insert(id.to_string()) {
-            return Err(self.on(
-                line,
-                format!("{what} id `{id}` is used twice; give each entry a distinct `id`"),
-            ));
-        }
-        Ok(())
+        Ok(name)
     }
 
     /// Takes the entry's `kind` and finds it among `kinds`, or says which kinds exist.
@@ -312,17 +303,12 @@ mod tests {
         assert!(m.contains(":3"), "{m}");
         let (h, _) = load("name = \"a.b-c_d\"\nseed = 7\ntrials = 3\n").unwrap();
         assert_eq!((h.name.as_str(), h.seed, h.trials), ("a.b-c_d", 7, 3));
-    }
-
-    #[test]
-    fn names_that_would_leave_their_folder_are_refused() {
-        for bad in [
-            "", ".", "..", ".hidden", "a/b", "../../x", "/abs", "a b", "a\\b",
-        ] {
-            assert!(!valid_name(bad), "{bad:?}");
-        }
-        for good in ["a", "griewank-2d", "table3.2", "MSGA_1"] {
-            assert!(valid_name(good), "{good:?}");
+        for bad in ["", "..", "/abs", "a/b", "-x"] {
+            let m = message(load(&format!("seed = 1\nname = {bad:?}\ntrials = 1\n")));
+            assert!(
+                m.contains("s.toml:2") && m.contains("results folder"),
+                "{m}"
+            );
         }
     }
 
@@ -356,10 +342,12 @@ mod tests {
         let m = message(t.take_kind(&kinds, |k| k, &mut g, 4, "thing"));
         assert!(m.contains("thing without `kind`"), "{m}");
         let mut seen = BTreeSet::new();
-        t.check_id("a", &mut seen, 5, "thing").unwrap();
-        let m = message(t.check_id("a", &mut seen, 6, "thing"));
+        t.check_id("a", &mut seen, 5, "thing", &[]).unwrap();
+        let m = message(t.check_id("A", &mut seen, 6, "thing", &[]));
         assert!(m.contains(":6") && m.contains("used twice"), "{m}");
-        let m = message(t.check_id("../a", &mut seen, 7, "thing"));
+        let m = message(t.check_id("../a", &mut seen, 7, "thing", &[]));
         assert!(m.contains(":7") && m.contains("use letters"), "{m}");
+        let m = message(t.check_id("Summary", &mut seen, 8, "table", &["summary"]));
+        assert!(m.contains(":8") && m.contains("reserved"), "{m}");
     }
 }

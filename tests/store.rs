@@ -1,0 +1,290 @@
+//! What a results folder survives, through the release binary: two runs into one folder at
+//! once (one is refused by the folder's lock, the other's results are whole), a progress
+//! log damaged in the middle (a full disk) or edited (only those trials run again, the
+//! results equal an uninterrupted run's), and trials whose every value is non-finite
+//! (stored as "inf", read back by report, resume and merge).
+
+mod common;
+
+use common::optbench;
+use serde_json::Value;
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+const BIN: &str = env!("CARGO_BIN_EXE_optbench");
+
+/// 8 quick trials.
+const SUITE: &str = r#"name = "store"
+seed = 42
+trials = 4
+budget = 2000
+
+[[objective]]
+kind = "sphere"
+dim = 5
+
+[[optimizer]]
+kind = "de"
+population = 20
+
+[[optimizer]]
+kind = "random"
+"#;
+
+/// 36 trials of some tens of milliseconds each: long enough to be caught running.
+const SLOW: &str = r#"name = "slow"
+seed = 42
+trials = 12
+budget = 20000
+
+[[objective]]
+kind = "griewank"
+dim = 30
+
+[[optimizer]]
+kind = "pso"
+population = 50
+
+[[optimizer]]
+kind = "de"
+population = 40
+
+[[optimizer]]
+kind = "cmaes"
+"#;
+
+fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "exit {:?}: {}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn refused(out: &Output, needles: &[&str]) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    for n in needles {
+        assert!(err.contains(n), "`{n}` not in: {err}");
+    }
+}
+
+/// summary.json with the wall times (the only values that may differ) zeroed.
+fn summary(dir: &Path) -> Value {
+    let mut v: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    for c in v["results"].as_array_mut().unwrap() {
+        c["wall_s"] = Value::from(0.0);
+    }
+    v
+}
+
+/// traces.jsonl records with wall times zeroed.
+fn traces(dir: &Path) -> Vec<Value> {
+    std::fs::read_to_string(dir.join("traces.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let mut v: Value = serde_json::from_str(l).unwrap();
+            v["wall_s"] = Value::from(0.0);
+            v
+        })
+        .collect()
+}
+
+fn log_lines(dir: &Path) -> Vec<String> {
+    std::fs::read_to_string(dir.join("progress.jsonl"))
+        .map(|t| t.lines().map(String::from).collect())
+        .unwrap_or_default()
+}
+
+fn key(line: &str) -> String {
+    let v: Value = serde_json::from_str(line).unwrap();
+    v["key"].as_str().unwrap().to_string()
+}
+
+#[test]
+fn two_runs_into_one_folder_one_refused_the_other_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("s.toml"), SLOW).unwrap();
+    let mut first = Command::new(BIN)
+        .args(["run", "s.toml", "--out", "both", "-q", "--seed", "42"])
+        .current_dir(d)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Its log exists, so it holds the folder's lock.
+    let started = Instant::now();
+    while log_lines(&d.join("both")).is_empty() {
+        assert!(
+            started.elapsed() < Duration::from_secs(600),
+            "no log written"
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    assert!(
+        first.try_wait().unwrap().is_none(),
+        "the first run ended before the second started"
+    );
+    let second = optbench(&["run", "s.toml", "--out", "both", "-q", "--seed", "7"], d);
+    refused(
+        &second,
+        &[
+            "in use by another optbench process",
+            &format!("pid {}", first.id()),
+            "--seed 42",
+        ],
+    );
+    assert!(first.wait().unwrap().success());
+    // The first run's results are whole and its own: equal to a run alone.
+    ok(&optbench(
+        &["run", "s.toml", "--out", "alone", "-q", "--seed", "42"],
+        d,
+    ));
+    assert_eq!(summary(&d.join("both")), summary(&d.join("alone")));
+    assert_eq!(traces(&d.join("both")), traces(&d.join("alone")));
+    assert_eq!(log_lines(&d.join("both")).len(), 1 + 36);
+    let header: Value = serde_json::from_str(&log_lines(&d.join("both"))[0]).unwrap();
+    assert_eq!(header["seed"], 42);
+}
+
+#[test]
+fn a_held_folder_refuses_run_report_and_merge_naming_the_holder() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("s.toml"), SUITE).unwrap();
+    ok(&optbench(&["run", "s.toml", "--out", "done", "-q"], d));
+    let lock = optbench::pipeline::store::lock_folder(&d.join("done")).unwrap();
+    let holder = format!("pid {}", std::process::id());
+    for args in [
+        &["run", "s.toml", "--out", "done", "-q", "--resume"][..],
+        &["report", "done"],
+        &["merge", "done", "--out", "done"],
+    ] {
+        refused(&optbench(args, d), &["done: in use", &holder]);
+    }
+    drop(lock);
+    // A killed run's temporary is cleared by the next run in the folder.
+    std::fs::write(d.join("done/.summary.json.tmp-12345"), "x").unwrap();
+    ok(&optbench(&["report", "done"], d));
+    assert!(!d.join("done/.summary.json.tmp-12345").exists());
+}
+
+/// Runs `SUITE` into `full`, writes its log damaged by `damage` into `cut`, resumes there
+/// and checks that exactly the trials of the damaged lines ran again and the results equal
+/// the uninterrupted run's; returns the resume's stderr and the keys rerun.
+fn resume_after(damage: impl Fn(&mut Vec<String>) -> Vec<String>) -> (String, Vec<String>) {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("s.toml"), SUITE).unwrap();
+    ok(&optbench(&["run", "s.toml", "--out", "full", "-q"], d));
+    let mut lines = log_lines(&d.join("full"));
+    assert_eq!(lines.len(), 1 + 8);
+    let lost = damage(&mut lines);
+    std::fs::create_dir(d.join("cut")).unwrap();
+    std::fs::write(d.join("cut/progress.jsonl"), lines.join("\n") + "\n").unwrap();
+    let out = optbench(&["run", "s.toml", "--out", "cut", "--resume"], d);
+    let err = ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains(&format!("{} trials resumed", 8 - lost.len())),
+        "{stdout}"
+    );
+    assert_eq!(summary(&d.join("cut")), summary(&d.join("full")));
+    assert_eq!(traces(&d.join("cut")), traces(&d.join("full")));
+    // The damaged lines are gone; the rerun trials are appended last.
+    let after = log_lines(&d.join("cut"));
+    assert_eq!(after.len(), 1 + 8, "{after:?}");
+    let last: Vec<String> = after[after.len() - lost.len()..]
+        .iter()
+        .map(|l| key(l))
+        .collect();
+    assert_eq!(last, lost);
+    (err, lost)
+}
+
+#[test]
+fn a_line_torn_in_the_middle_of_the_log_reruns_only_its_trial() {
+    // A full disk: line 4 cut short without its newline, later trials appended after it.
+    let (err, _) = resume_after(|lines| {
+        let lost = key(&lines[3]);
+        let half = lines[3].len() / 2;
+        let next = lines.remove(4);
+        lines[3] = format!("{}{next}", &lines[3][..half]);
+        vec![lost]
+    });
+    assert!(err.contains("progress.jsonl:4:"), "{err}");
+    assert!(err.contains("runs again"), "{err}");
+}
+
+#[test]
+fn an_edited_trial_line_is_detected_and_rerun() {
+    let (err, _) = resume_after(|lines| {
+        // A better final value typed in: still valid JSON, but not what the trial found.
+        let lost = key(&lines[6]);
+        let at = lines[6].find("\"best\":").unwrap() + 7;
+        let end = at + lines[6][at..].find(',').unwrap();
+        lines[6].replace_range(at..end, "1e-9");
+        vec![lost]
+    });
+    assert!(
+        err.contains("progress.jsonl:7: fails its checksum"),
+        "{err}"
+    );
+}
+
+#[test]
+fn trials_with_no_finite_value_go_through_run_report_resume_and_merge() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Every point of this box squares to more than f64 holds: each evaluation is +inf.
+    std::fs::write(
+        d.join("s.toml"),
+        r#"name = "allinf"
+seed = 3
+trials = 2
+budget = 60
+
+[[objective]]
+kind = "sphere"
+dim = 2
+lower = -1e200
+upper = 1e200
+
+[[optimizer]]
+kind = "random"
+
+[[optimizer]]
+kind = "de"
+population = 6
+"#,
+    )
+    .unwrap();
+    ok(&optbench(&["run", "s.toml", "--out", "r", "-q"], d));
+    for f in ["summary.json", "traces.jsonl"] {
+        let text = std::fs::read_to_string(d.join("r").join(f)).unwrap();
+        assert!(!text.contains("null"), "{f}: {text}");
+        assert!(text.contains("\"inf\""), "{f}: {text}");
+    }
+    let s = summary(&d.join("r"));
+    assert_eq!(s["results"][0]["finals"][0], "inf");
+    assert_eq!(s["results"][0]["nonfinite"], 2 * 60);
+    ok(&optbench(&["report", "r"], d));
+    // Resume reads the stored non-finite trials back (one removed, so one runs again).
+    let mut lines = log_lines(&d.join("r"));
+    lines.pop();
+    std::fs::write(d.join("r/progress.jsonl"), lines.join("\n") + "\n").unwrap();
+    let before = summary(&d.join("r"));
+    ok(&optbench(
+        &["run", "s.toml", "--out", "r", "-q", "--resume"],
+        d,
+    ));
+    assert_eq!(summary(&d.join("r")), before);
+    ok(&optbench(&["merge", "r", "--out", "m", "-q"], d));
+    assert_eq!(summary(&d.join("m")), before);
+}
