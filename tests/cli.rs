@@ -196,7 +196,7 @@ fn impossible_parameters_are_refused() {
     );
     rejects(
         &format!("{HEAD}{obj}[[optimizer]]\nkind = \"pso\"\npopulation = 0\n"),
-        &["bad.toml:10:", "`population`", "integer >= 1"],
+        &["bad.toml:10:", "`population`", "integer in [1, 10000]"],
     );
     rejects(
         &format!("{HEAD}{obj}[[optimizer]]\nkind = \"ga\"\npopulation = 10\nelite = 10\n"),
@@ -204,7 +204,7 @@ fn impossible_parameters_are_refused() {
     );
     rejects(
         &format!("{HEAD}[[objective]]\nkind = \"sphere\"\ndim = 0\n[[optimizer]]\nkind = \"ga\"\n"),
-        &["bad.toml:7:", "`dim`", "integer >= 1"],
+        &["bad.toml:7:", "`dim`", "integer in [1, 4000]"],
     );
     rejects(
         &format!(

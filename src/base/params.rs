@@ -67,17 +67,28 @@ impl fmt::Display for Value {
     }
 }
 
+/// `x` as written in a suite: huge and tiny magnitudes in exponent form (`1e30`).
+fn num(x: f64) -> String {
+    if x != 0.0 && !(1e-4..1e15).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
 impl fmt::Display for Kind {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             Kind::Int { min, max } if max == i64::MAX => write!(f, "integer >= {min}"),
             Kind::Int { min, max } => write!(f, "integer in [{min}, {max}]"),
             Kind::Float { min, max } => match (min.is_finite(), max.is_finite()) {
-                (true, true) if min == f64::MIN_POSITIVE => write!(f, "number in (0, {max}]"),
-                (true, true) => write!(f, "number in [{min}, {max}]"),
+                (true, true) if min == f64::MIN_POSITIVE => {
+                    write!(f, "number in (0, {}]", num(max))
+                }
+                (true, true) => write!(f, "number in [{}, {}]", num(min), num(max)),
                 (true, false) if min == f64::MIN_POSITIVE => write!(f, "number > 0"),
-                (true, false) => write!(f, "number >= {min}"),
-                (false, true) => write!(f, "number <= {max}"),
+                (true, false) => write!(f, "number >= {}", num(min)),
+                (false, true) => write!(f, "number <= {}", num(max)),
                 (false, false) => write!(f, "finite number"),
             },
             Kind::Choice(c) => write!(f, "one of {}", c.join(" | ")),
@@ -117,7 +128,11 @@ impl Spec {
                     _ => unreachable!(),
                 };
                 if !x.is_finite() || x < min || x > max {
-                    Err(format!("{x} is out of range: expected {}", self.kind))
+                    Err(format!(
+                        "{} is out of range: expected {}",
+                        num(x),
+                        self.kind
+                    ))
                 } else {
                     Ok(Value::Float(x))
                 }

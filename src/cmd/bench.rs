@@ -1,6 +1,7 @@
 //! `optbench bench`: evaluation speed on this machine (see [`crate::speed`]).
 
 use crate::base::error::{Error, Result};
+use crate::base::limits::MAX_THREADS;
 use crate::speed::{BenchConfig, run as measure};
 
 #[derive(clap::Args, Debug)]
@@ -9,7 +10,7 @@ pub struct BenchArgs {
     #[arg(long)]
     pub quick: bool,
     /// Threads for the all-thread figures (default: one per core).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_THREADS as i64))]
     pub threads: Option<u32>,
     /// Also write the figures as JSON to this file (read by scripts/compare-peers).
     #[arg(long)]

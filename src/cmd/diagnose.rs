@@ -2,6 +2,7 @@
 //! (`--proof`) the concealed-effect proof on the twin.
 
 use crate::base::error::{Error, Result};
+use crate::base::limits;
 use crate::data::recording::{Columns, Delimiter, ReadOptions};
 use crate::diagnose::recordings::{Files, diagnose_files};
 use crate::diagnose::{Options, proof};
@@ -140,6 +141,9 @@ pub fn run(a: DiagnoseArgs) -> Result<()> {
             a.min_substeps
         )));
     }
+    limits::at_most("--bootstrap", a.bootstrap as u64, limits::MAX_BOOTSTRAP)
+        .map_err(Error::Input)?;
+    limits::at_most("--seeds", a.seeds, limits::MAX_TRIALS).map_err(Error::Input)?;
     let opts = Options {
         model,
         seed: a.seed,

@@ -39,7 +39,7 @@ pub struct FitArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub trim_start: Option<f64>,
     /// Function evaluations (default: the dissertation's 200 individuals x 150 iterations).
-    #[arg(long, default_value_t = 30_000)]
+    #[arg(long, default_value_t = 30_000, value_parser = clap::value_parser!(u64).range(1..))]
     pub budget: u64,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,

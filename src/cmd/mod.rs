@@ -1,5 +1,9 @@
 //! The command layer: one file per subcommand, each parsing its arguments and calling the
 //! library; nothing below imports it.
+//!
+//! Arguments are the user's values: no unwrap or index on them here (a bad value is an
+//! error with exit 2, never a panic), which clippy holds this layer to.
+#![deny(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 pub mod bench;
 pub mod control;

@@ -2,6 +2,7 @@
 //! and report.
 
 use crate::base::error::Result;
+use crate::base::limits::{MAX_THREADS, MAX_TRIALS};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
@@ -13,10 +14,10 @@ pub struct RunArgs {
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Override the suite's number of trials.
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_TRIALS as i64))]
     pub trials: Option<u32>,
     /// Worker threads for trials (default: one per core). Results do not depend on it.
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_THREADS as i64))]
     pub threads: Option<u32>,
     /// Override the suite's seed.
     #[arg(long)]

@@ -1,6 +1,7 @@
 //! `optbench simulate`: piezo-twin recordings written as CSV files.
 
-use crate::base::error::Result;
+use crate::base::error::{Error, Result};
+use crate::base::limits;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -30,6 +31,15 @@ pub struct SimulateArgs {
 }
 
 pub fn run(a: SimulateArgs) -> Result<()> {
+    // The samples asked for (chirps carry their own duration, checked with their spec).
+    let longest = a.duration.unwrap_or_else(|| {
+        crate::data::signal::seed_experiments()
+            .iter()
+            .map(|e| e.2)
+            .fold(0.0, f64::max)
+    });
+    limits::samples(longest, a.dt)
+        .map_err(|e| Error::Input(format!("--duration {longest:?} with --dt {:?}: {e}", a.dt)))?;
     let req = crate::pipeline::simulate::SimulateRequest {
         signal: a.signal.map(|s| (s, a.duration)),
         twin: a.twin,

@@ -3,6 +3,7 @@
 //! signal library ([`crate::data::signal`]).
 
 use crate::base::error::{Error, Result};
+use crate::base::limits;
 use crate::data::signal::{ChirpLaw, Signal};
 use std::f64::consts::FRAC_PI_2;
 
@@ -90,6 +91,9 @@ impl Reference {
                 r.duration
             )));
         }
+        // Sampled at the loop's step (`control::run::DT`, 1 ms).
+        limits::samples(r.duration, 1e-3)
+            .map_err(|e| Error::Input(format!("reference `{spec}`: {e}")))?;
         Ok(r)
     }
 

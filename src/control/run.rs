@@ -9,6 +9,7 @@ use super::pid::PidGains;
 use super::reference::Reference;
 use crate::base::TrialSeed;
 use crate::base::error::{Error, Result};
+use crate::base::limits::{self, MAX_DIM, MAX_POPULATION};
 use crate::physics::twin::{Twin, TwinConfig};
 use serde::{Deserialize, Serialize};
 
@@ -101,14 +102,15 @@ fn number(kind: &str, key: &str, v: &str) -> Result<f64> {
         })
 }
 
-fn count(kind: &str, key: &str, v: &str) -> Result<usize> {
+/// A count in `[1, max]` (limits in [`crate::base::limits`]).
+fn count(kind: &str, key: &str, v: &str, max: usize) -> Result<usize> {
     v.trim()
         .parse::<usize>()
         .ok()
-        .filter(|&n| n >= 1)
+        .filter(|&n| (1..=max).contains(&n))
         .ok_or_else(|| {
             Error::Input(format!(
-                "controller `{kind}`: `{key}` = `{v}` is not an integer >= 1"
+                "controller `{kind}`: `{key}` = `{v}` is not an integer in [1, {max}]"
             ))
         })
 }
@@ -145,7 +147,7 @@ impl ControllerSpec {
                     match k.as_str() {
                         "learning_rate" => net.learning_rate = number(kind, k, v)?,
                         "momentum" => net.momentum = number(kind, k, v)?,
-                        "hidden" => net.hidden = count(kind, k, v)?,
+                        "hidden" => net.hidden = count(kind, k, v, MAX_DIM)?,
                         "error_scale" => net.error_scale = number(kind, k, v)?,
                         "centre_spread" => net.centre_spread = number(kind, k, v)?,
                         "width" => net.width = number(kind, k, v)?,
@@ -163,9 +165,9 @@ impl ControllerSpec {
                                 )));
                             }
                         },
-                        "model_budget" => model.budget = count(kind, k, v)? as u64,
-                        "model_swarm" => model.swarm = count(kind, k, v)?,
-                        "model_hidden" => model.hidden = count(kind, k, v)?,
+                        "model_budget" => model.budget = count(kind, k, v, usize::MAX)? as u64,
+                        "model_swarm" => model.swarm = count(kind, k, v, MAX_POPULATION)?,
+                        "model_hidden" => model.hidden = count(kind, k, v, MAX_DIM)?,
                         "model_signal" => {
                             crate::data::signal::Signal::parse(v).map_err(|e| {
                                 Error::Input(format!("controller `{kind}`: `model_signal`: {e}"))
@@ -179,6 +181,9 @@ impl ControllerSpec {
                                     "controller `{kind}`: `model_duration` = {d}: must be > 0"
                                 )));
                             }
+                            limits::samples(d, DT).map_err(|e| {
+                                Error::Input(format!("controller `{kind}`: `model_duration`: {e}"))
+                            })?;
                             model.duration = d;
                         }
                         _ => return Err(unknown(kind, k, IMC_KEYS)),

@@ -230,3 +230,26 @@ fn every_listed_imc_key_is_accepted() {
     assert_eq!(c.training_sensitivity(0.2), 0.2);
     assert_eq!(c.training_sensitivity(0.9), 0.3);
 }
+
+#[test]
+fn control_sizes_beyond_their_limits_are_refused() {
+    use super::run::ControllerSpec;
+    for (key, limit) in [
+        ("hidden", "4000"),
+        ("model_hidden", "4000"),
+        ("model_swarm", "10000"),
+    ] {
+        let e = ControllerSpec::parse("imc-rbf", &[(key.into(), "1000000000".into())])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(key) && e.contains(limit), "{e}");
+    }
+    let e = ControllerSpec::parse("imc-rbf", &[("model_duration".into(), "1e6".into())])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("10000000"), "{e}");
+    let e = super::reference::Reference::parse("sine:freq=1", Some(1e6))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("10000000"), "{e}");
+}

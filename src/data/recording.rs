@@ -3,6 +3,7 @@
 
 use crate::base::atomic_write;
 use crate::base::error::{Error, Result};
+use crate::base::limits::{MAX_MAGNITUDE, MAX_SAMPLES};
 use std::path::{Path, PathBuf};
 
 /// A uniformly sampled single-input single-output record.
@@ -24,8 +25,8 @@ pub struct Recording {
 pub const MIN_SAMPLES: usize = 8;
 
 impl Recording {
-    /// Checked constructor: equal lengths, at least [`MIN_SAMPLES`], finite values, strictly
-    /// increasing uniform time.
+    /// Checked constructor: equal lengths, [`MIN_SAMPLES`] to [`MAX_SAMPLES`], finite values
+    /// within ±[`MAX_MAGNITUDE`], strictly increasing uniform time.
     pub fn new(name: impl Into<String>, t: Vec<f64>, u: Vec<f64>, y: Vec<f64>) -> Result<Self> {
         let name = name.into();
         if t.len() != u.len() || t.len() != y.len() {
@@ -42,9 +43,20 @@ impl Recording {
                 t.len()
             )));
         }
+        if t.len() > MAX_SAMPLES {
+            return Err(Error::Input(format!(
+                "{name}: {} samples, above the limit of {MAX_SAMPLES} (derived from memory)",
+                t.len()
+            )));
+        }
         for (i, ((a, b), c)) in t.iter().zip(&u).zip(&y).enumerate() {
             if !(a.is_finite() && b.is_finite() && c.is_finite()) {
                 return Err(Error::Input(format!("{name}: sample {i} is not finite")));
+            }
+            if [a, b, c].iter().any(|v| v.abs() > MAX_MAGNITUDE) {
+                return Err(Error::Input(format!(
+                    "{name}: sample {i} ({a}, {b}, {c}) is beyond ±{MAX_MAGNITUDE:e}"
+                )));
             }
         }
         let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
@@ -117,7 +129,38 @@ impl Recording {
         Ok(r)
     }
 
+    /// Refuses a constant input or output (a disconnected channel, a column of zeros):
+    /// nothing to fit, and scaled fits and diagnoses would divide by zero. For records read
+    /// with `columns`, to name them.
+    pub fn check_varies(&self, columns: &Columns) -> Result<()> {
+        for (role, name, v) in [
+            ("input", &columns.input, &self.u),
+            ("output", &columns.output, &self.y),
+        ] {
+            if let Some(first) = v.first()
+                && v.iter().all(|x| x == first)
+            {
+                return Err(Error::Input(format!(
+                    "{}: {role} column '{name}': every value is {first} (all {} samples): \
+                     nothing to fit",
+                    self.name,
+                    v.len()
+                )));
+            }
+        }
+        Ok(())
+    }
+
     pub fn slice(&self, range: std::ops::Range<usize>) -> Result<Self> {
+        if range.start > range.end || range.end > self.len() {
+            return Err(Error::Input(format!(
+                "{}: samples {}..{} requested but it has {}",
+                self.name,
+                range.start,
+                range.end,
+                self.len()
+            )));
+        }
         let mut r = Self::new(
             format!("{}[{}..{}]", self.name, range.start, range.end),
             self.t[range.clone()].to_vec(),
@@ -491,6 +534,12 @@ fn number(
     if !v.is_finite() {
         return Err(format!("'{shown}' is not finite"));
     }
+    if v.abs() > MAX_MAGNITUDE {
+        return Err(format!(
+            "'{text}' is beyond ±{MAX_MAGNITUDE:e} (squared errors would overflow; rescale the \
+             column's unit)"
+        ));
+    }
     Ok((v, token))
 }
 
@@ -791,6 +840,13 @@ impl Recording {
                 .position()
                 .map_or(last_line + 1, |p| p.line() as usize);
             last_line = line;
+            if lines.len() == MAX_SAMPLES {
+                return Err(Error::at(
+                    path,
+                    line,
+                    format!("more than {MAX_SAMPLES} data rows (a limit derived from memory)"),
+                ));
+            }
             for field in record.iter() {
                 printing.see_field(field);
             }
@@ -913,8 +969,8 @@ impl Recording {
             }
             Some(k) => {
                 let span = t[n - 1] - t[0];
-                let m = (span / grid.step).round() as usize + 1;
-                if m > RESAMPLE_GROWTH * n {
+                let m = ((span / grid.step).round() as usize).saturating_add(1);
+                if m > RESAMPLE_GROWTH * n || m > MAX_SAMPLES {
                     return Err(Error::at(
                         path,
                         0,
@@ -1178,12 +1234,12 @@ mod tests {
         let dt = 1.0 / 750.0;
         let t: Vec<f64> = (0..n).map(|k| 3.0 + k as f64 * dt).collect();
         let mut u: Vec<f64> = (0..n)
-            .map(|_| (rng.random::<f64>() - 0.5) * 10f64.powi(rng.random_range(-300..300)))
+            .map(|_| (rng.random::<f64>() - 0.5) * 10f64.powi(rng.random_range(-300..30)))
             .collect();
         let y: Vec<f64> = (0..n).map(|_| rng.random::<f64>() * 1e-4).collect();
         u[0] = -0.0;
         u[1] = f64::MIN_POSITIVE / 8.0; // subnormal
-        u[2] = f64::MAX;
+        u[2] = MAX_MAGNITUDE; // the largest accepted
         let mut r = Recording::new("orig", t, u, y).unwrap();
         r.units = ["s".into(), "V".into(), "mm".into()];
         let dir = tempfile::tempdir().unwrap();

@@ -39,6 +39,7 @@
 
 use crate::base::TrialSeed;
 use crate::base::error::{Error, Result};
+use crate::base::limits::MAX_NESTING;
 use rand::RngExt;
 use std::f64::consts::TAU;
 use std::fmt;
@@ -480,6 +481,7 @@ impl Signal {
             src: spec,
             pos: 0,
             end: spec.len(),
+            depth: 0,
         };
         let s = p.signal()?;
         p.skip_ws();
@@ -709,6 +711,9 @@ struct Parser<'a> {
     src: &'a str,
     pos: usize,
     end: usize,
+    /// Nesting level at `pos`: refused past [`MAX_NESTING`] before the recursion can
+    /// exhaust the stack.
+    depth: usize,
 }
 
 /// One `key=value` of a kind, with where it was written.
@@ -774,6 +779,12 @@ impl<'a> Parser<'a> {
     fn product(&mut self) -> Result<Signal> {
         self.skip_ws();
         let start = self.pos;
+        if self.depth > MAX_NESTING {
+            return Err(self.err_at(
+                start,
+                format!("nested more than {MAX_NESTING} levels deep (each '(' and 'k*' is one)"),
+            ));
+        }
         if self
             .peek()
             .is_some_and(|c| c.is_ascii_digit() || matches!(c, '.' | '-' | '+'))
@@ -781,7 +792,10 @@ impl<'a> Parser<'a> {
             let text = self.number_text();
             let v = parse_number(text).map_err(|m| self.err_at(start, m))?;
             if self.eat('*') {
-                return Ok(Signal::Scale(v, Box::new(self.product()?)));
+                self.depth += 1;
+                let inner = self.product()?;
+                self.depth -= 1;
+                return Ok(Signal::Scale(v, Box::new(inner)));
             }
             return Ok(Signal::Constant(v));
         }
@@ -812,7 +826,9 @@ impl<'a> Parser<'a> {
         self.skip_ws();
         let start = self.pos;
         if self.eat('(') {
+            self.depth += 1;
             let s = self.signal()?;
+            self.depth -= 1;
             if !self.eat(')') {
                 return Err(self.err_at(self.pos, format!("expected ')' for '(' at {}", start + 1)));
             }
@@ -926,6 +942,7 @@ impl<'a> Parser<'a> {
             src: self.src,
             pos: p.value_pos + 1,
             end: p.value_pos + 1 + p.value.len(),
+            depth: self.depth + 1,
         }
     }
 
@@ -1459,6 +1476,24 @@ mod tests {
         for n in needles {
             assert!(e.contains(n), "{spec}: '{n}' not in: {e}");
         }
+    }
+
+    #[test]
+    fn nesting_is_bounded_before_the_stack_is() {
+        let parens = |n: usize| format!("{}sine:freq=1{}", "(".repeat(n), ")".repeat(n));
+        assert!(Signal::parse(&parens(MAX_NESTING)).is_ok());
+        refused(&parens(MAX_NESTING + 1), &["nested more than 64 levels"]);
+        assert!(Signal::parse(&format!("{}sine:freq=1", "2*".repeat(MAX_NESTING))).is_ok());
+        refused(
+            &format!("{}sine:freq=1", "2*".repeat(MAX_NESTING + 1)),
+            &["nested more than 64 levels"],
+        );
+        // Parameters in parentheses count too.
+        let mut am = "sine:freq=1".to_string();
+        for _ in 0..MAX_NESTING + 1 {
+            am = format!("am:carrier=({am}),envelope=ramp");
+        }
+        refused(&am, &["nested more than 64 levels"]);
     }
 
     #[test]

@@ -2,7 +2,9 @@
 //!
 //! Optimizers never touch an objective directly. They pass points to the [`Evaluator`],
 //! which spends budget, stops exactly at the budget or at the target, sanitises values
-//! (NaN counts as +inf), and records the trace. An optimizer that evaluates on threads of
+//! (NaN counts as +inf to the optimizer; the trace records every non-finite value, and any
+//! above [`NONFINITE_COST`], as that finite penalty, so no result is ever NaN or infinite),
+//! and records the trace. An optimizer that evaluates on threads of
 //! its own (MSGA) takes a [`Grant`] of a fixed number of evaluations, evaluates on any
 //! thread, and hands the [`Evaluated`] result back through [`Evaluator::commit`]; the
 //! coordinator commits in a fixed order, so counts and traces do not depend on scheduling.
@@ -26,6 +28,7 @@
 //! `evaluations` is everything spent). Which grants exist depends on counts only, so this is
 //! deterministic.
 
+use crate::base::limits::NONFINITE_COST;
 use crate::objective::{Bounds, Objective};
 use std::sync::Arc;
 
@@ -37,13 +40,14 @@ pub struct Trace {
     pub improvements: Vec<(u64, f64)>,
     /// (evaluation number, best-so-far) on the log-spaced grid.
     pub checkpoints: Vec<(u64, f64)>,
-    /// Best value found (+inf if nothing finite was ever seen).
+    /// Best value found (+inf only before the first evaluation; at most [`NONFINITE_COST`]
+    /// after it).
     pub best: f64,
     /// Where [`Trace::best`] was found.
     pub best_x: Vec<f64>,
     /// Evaluations spent.
     pub evaluations: u64,
-    /// Evaluations that returned NaN or an infinity.
+    /// Evaluations that returned NaN or an infinity (also counted as penalised).
     pub nonfinite: u64,
     /// Evaluations the objective answered with a penalty (unusable parameters, e.g. an
     /// unstable model; see [`Objective::penalty_threshold`]).
@@ -214,7 +218,8 @@ impl Evaluator {
     fn tally(&mut self, f: f64) {
         if !f.is_finite() {
             self.trace.nonfinite += 1;
-        } else if f >= self.penalty {
+            self.trace.penalised += 1;
+        } else if f >= self.penalty || f >= NONFINITE_COST {
             self.trace.penalised += 1;
         }
     }
@@ -222,6 +227,12 @@ impl Evaluator {
     #[inline]
     fn record(&mut self, x: &[f64], f: f64) {
         self.tally(f);
+        // The finite penalty: ranks below every legitimate cost, keeps results finite.
+        let f = if f < NONFINITE_COST {
+            f
+        } else {
+            NONFINITE_COST
+        };
         if f < self.trace.best || self.trace.best_x.is_empty() {
             if f < self.trace.best {
                 self.trace.best = f;
@@ -547,6 +558,31 @@ mod tests {
             vec![(1, 9.0), (2, 4.0), (3, 0.010000000000000002)]
         );
         assert_eq!(t.checkpoints.last().unwrap().0, 3);
+    }
+
+    #[test]
+    fn non_finite_values_are_recorded_as_the_finite_penalty() {
+        struct Bad(Bounds);
+        impl Objective for Bad {
+            fn name(&self) -> &str {
+                "bad"
+            }
+            fn bounds(&self) -> &Bounds {
+                &self.0
+            }
+            fn evaluate(&self, x: &[f64]) -> f64 {
+                if x[0] > 0.0 { f64::NAN } else { f64::INFINITY }
+            }
+        }
+        let obj = Arc::new(Bad(Bounds::uniform(1, -1.0, 1.0).unwrap()));
+        let mut ev = Evaluator::new(obj, 4, None);
+        let mut out = [0.0; 4];
+        ev.evaluate_batch(&[0.5, -0.5, 0.2, -0.2], &mut out);
+        let t = ev.finish();
+        assert_eq!(t.best, NONFINITE_COST);
+        assert_eq!((t.nonfinite, t.penalised), (4, 4));
+        assert!(t.checkpoints.iter().all(|c| c.1 == NONFINITE_COST));
+        assert_eq!(t.improvements, vec![(1, NONFINITE_COST)]);
     }
 
     #[test]

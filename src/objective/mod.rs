@@ -5,6 +5,7 @@ pub mod functions;
 pub mod hysteresis;
 pub mod source;
 
+use crate::base::limits::{MAX_DIM, MAX_MAGNITUDE};
 use rand::{Rng, RngExt};
 
 /// A box-shaped search domain: `lower[i] <= x[i] <= upper[i]`.
@@ -27,9 +28,20 @@ impl Bounds {
         if lower.is_empty() {
             return Err("dimension must be at least 1".into());
         }
+        if lower.len() > MAX_DIM {
+            return Err(format!(
+                "dimension {} is above the limit of {MAX_DIM} (derived from memory)",
+                lower.len()
+            ));
+        }
         for (i, (&l, &u)) in lower.iter().zip(&upper).enumerate() {
             if !l.is_finite() || !u.is_finite() {
                 return Err(format!("bound {i} is not finite ({l}, {u})"));
+            }
+            if l.abs().max(u.abs()) > MAX_MAGNITUDE {
+                return Err(format!(
+                    "bound {i} ({l}, {u}) is beyond ±{MAX_MAGNITUDE:e}, where costs would overflow"
+                ));
             }
             if l >= u {
                 return Err(format!(
@@ -42,6 +54,11 @@ impl Bounds {
 
     /// The same interval `[lo, hi]` in every one of `dim` dimensions.
     pub fn uniform(dim: usize, lo: f64, hi: f64) -> Result<Self, String> {
+        if dim > MAX_DIM {
+            return Err(format!(
+                "dimension {dim} is above the limit of {MAX_DIM} (derived from memory)"
+            ));
+        }
         Self::new(vec![lo; dim], vec![hi; dim])
     }
 

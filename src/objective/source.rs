@@ -10,6 +10,7 @@
 //! - `eq318:<signal>`: the dissertation's numerical identification example (eq. 3.18).
 
 use crate::base::error::{Error, Result};
+use crate::base::limits;
 use crate::data::recording::{Columns, ReadOptions, Recording, data_dir};
 use crate::data::signal::Signal;
 use crate::physics::rbf;
@@ -88,15 +89,19 @@ pub fn anchored(spec: &str, base: &Path) -> Option<String> {
     abs.to_str().map(String::from)
 }
 
+/// The duration of a simulated source; its samples (`duration / dt`) within
+/// [`MAX_SAMPLES`](crate::base::limits::MAX_SAMPLES).
 fn duration_of(signal: &Signal, opts: &SimOptions, spec: &str) -> Result<f64> {
-    match (opts.duration, signal) {
+    let d = match (opts.duration, signal) {
         (Some(d), _) if d > 0.0 && d.is_finite() => Ok(d),
         (Some(d), _) => Err(Error::Input(format!("`{spec}`: duration {d} must be > 0"))),
         (None, Signal::Chirp { duration, .. }) => Ok(*duration),
         (None, _) => Err(Error::Input(format!(
             "`{spec}`: give a duration (seconds) for this signal"
         ))),
-    }
+    }?;
+    limits::samples(d, opts.dt).map_err(|e| Error::Input(format!("`{spec}`: {e}")))?;
+    Ok(d)
 }
 
 impl Source {
@@ -160,9 +165,11 @@ impl Source {
     }
 }
 /// [`Recording::read_csv_noted`], its notes printed to stderr (where every command that
-/// reads recordings says what was done to them).
+/// reads recordings says what was done to them), a constant input or output refused
+/// ([`Recording::check_varies`]): the one read of fit, suites, diagnose and control.
 pub fn read_noting(path: &Path, columns: &Columns, read: &ReadOptions) -> Result<Recording> {
     let (rec, notes) = Recording::read_csv_noted(path, columns, read)?;
+    rec.check_varies(columns)?;
     for n in notes {
         eprintln!("note: {n}");
     }

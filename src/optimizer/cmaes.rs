@@ -18,6 +18,7 @@
 //! number above 1e14, or non-finite state. The symmetric eigendecomposition of C comes from
 //! nalgebra and is refreshed lazily (every lambda / (c1 + c_mu) / d / 10 generations).
 
+use crate::base::limits::MAX_POPULATION;
 use crate::base::{TrialSeed, standard_normal};
 use crate::harness::{Evaluator, Optimizer, OptimizerConfig};
 use crate::objective::Bounds;
@@ -326,7 +327,8 @@ impl Optimizer for Cmaes {
         if !healthy || run.should_restart() {
             self.restarts += 1;
             if self.ipop {
-                self.lambda = self.lambda.saturating_mul(2);
+                // Capped like a population set by the user (a limit derived from memory).
+                self.lambda = self.lambda.saturating_mul(2).min(MAX_POPULATION);
             }
             self.run = None;
         }

@@ -48,10 +48,14 @@ pub struct Overrides {
 }
 
 impl Overrides {
-    /// Applies the overrides to a loaded suite.
-    pub fn apply(&self, suite: &mut Suite) {
+    /// Applies the overrides to a loaded suite; refused if the plan outgrows its memory
+    /// budget.
+    pub fn apply(&self, suite: &mut Suite) -> Result<()> {
         if let Some(t) = self.trials {
             suite.trials = t;
+            if let Some(m) = suite.plan_too_large() {
+                return Err(Error::Input(format!("--trials {t}: {m}")));
+            }
         }
         if let Some(s) = self.seed {
             suite.seed = s;
@@ -61,6 +65,7 @@ impl Overrides {
                 o.budget = b;
             }
         }
+        Ok(())
     }
 }
 
@@ -169,7 +174,7 @@ pub struct Prepared {
 /// Loads and validates the suite, applies overrides and the shard; writes nothing.
 pub fn prepare(req: &RunRequest) -> Result<Prepared> {
     let mut suite = Suite::load(&req.suite)?;
-    req.overrides.apply(&mut suite);
+    req.overrides.apply(&mut suite)?;
     let out = req.out.clone().unwrap_or_else(|| {
         let name = match req.shard {
             Some(s) => format!("{}-shard-{}-of-{}", suite.name, s.k, s.n),

@@ -90,6 +90,11 @@ struct FitSummary<'a> {
 
 /// Runs the fit, writes its folder, and returns the text to print.
 pub fn run_fit(req: &FitRequest) -> Result<String> {
+    if req.budget == 0 {
+        return Err(Error::Input(
+            "--budget 0: expected at least 1 evaluation".into(),
+        ));
+    }
     let kinds = objective_kinds();
     let fit_kinds: Vec<&str> = kinds
         .iter()
@@ -178,7 +183,18 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
 
     std::fs::create_dir_all(&req.out)
         .map_err(|e| Error::io(format!("creating {}", req.out.display()), e))?;
-    let metrics = objective.metrics(&record.best_x);
+    // A result is a number: a metric the best point makes non-finite (a model that
+    // diverges on a validation record) is named, never written as null.
+    let (metrics, diverged): (Vec<_>, Vec<_>) = objective
+        .metrics(&record.best_x)
+        .into_iter()
+        .partition(|m| m.value.is_finite());
+    for m in &diverged {
+        eprintln!(
+            "note: {} is {} at the fitted parameters (the model diverges); left out of fit.json",
+            m.name, m.value
+        );
+    }
     let named = view.named_params(&record.best_x);
     let recs = view.recordings();
     let (trains, held): (Vec<_>, Vec<_>) = recs.iter().partition(|(l, _)| l.starts_with("train"));

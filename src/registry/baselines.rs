@@ -3,6 +3,7 @@
 
 use super::OptimizerKind;
 use crate::base::error::Error;
+use crate::base::limits::MAX_POPULATION;
 use crate::base::params::{Default as D, Kind, Params, Spec, probability};
 use crate::harness::OptimizerConfig;
 use crate::optimizer::cmaes::CmaesConfig;
@@ -14,7 +15,7 @@ const DE_POPULATION: Spec = Spec {
     name: "population",
     kind: Kind::Int {
         min: 4,
-        max: i64::MAX,
+        max: MAX_POPULATION as i64,
     },
     default: D::Int(100),
     help: "individuals (at least 4: a mutant needs three others)",
@@ -45,7 +46,7 @@ const SHADE_PARAMS: &[Spec] = &[
         name: "memory",
         kind: Kind::Int {
             min: 1,
-            max: i64::MAX,
+            max: MAX_POPULATION as i64,
         },
         default: D::Int(100),
         help: "success-history entries H of (CR, F) means (paper: H = population)",
@@ -77,6 +78,16 @@ fn build_shade(p: &Params) -> Result<Arc<dyn OptimizerConfig>, Error> {
         p_max: p.float("p_max"),
         archive: p.float("archive"),
     };
+    // The archive's points count as one more population (see `MAX_POPULATION`).
+    if cfg.archive * cfg.population as f64 > MAX_POPULATION as f64 {
+        return Err(p.error(
+            "archive",
+            format!(
+                "{} x population {} is above {MAX_POPULATION} archived points (a limit derived from memory)",
+                cfg.archive, cfg.population
+            ),
+        ));
+    }
     if cfg.p_max * (cfg.population as f64) < 2.0 {
         return Err(p.error(
             "p_max",
@@ -94,7 +105,7 @@ const CMAES_PARAMS: &[Spec] = &[
         name: "lambda",
         kind: Kind::Int {
             min: 2,
-            max: i64::MAX,
+            max: MAX_POPULATION as i64,
         },
         default: D::Derived("4 + floor(3 ln dim)"),
         help: "offspring per generation of the first run",

@@ -1,6 +1,7 @@
 //! The objective and optimizer kinds a suite may name, with their parameter tables.
 
 use crate::base::error::Error;
+use crate::base::limits::{self, MAX_DIM, MAX_MAGNITUDE, MAX_POPULATION, MAX_SAMPLES};
 use crate::base::params::{Default as D, Kind, Params, Spec, probability};
 use crate::data::recording::{Delimiter, ReadOptions, Recording};
 use crate::harness::OptimizerConfig;
@@ -37,33 +38,36 @@ pub struct OptimizerKind {
     pub build: fn(&Params) -> Result<Arc<dyn OptimizerConfig>, Error>,
 }
 
-const POSITIVE_INT: Kind = Kind::Int {
-    min: 1,
-    max: i64::MAX,
+/// A size of at most `max` (limits in [`crate::base::limits`]).
+const fn size(min: i64, max: usize) -> Kind {
+    Kind::Int {
+        min,
+        max: max as i64,
+    }
+}
+
+/// A bound or level: finite, of at most [`MAX_MAGNITUDE`] (so costs stay finite).
+const MAGNITUDE: Kind = Kind::Float {
+    min: -MAX_MAGNITUDE,
+    max: MAX_MAGNITUDE,
 };
 
 const FUNCTION_PARAMS: &[Spec] = &[
     Spec {
         name: "dim",
-        kind: POSITIVE_INT,
+        kind: size(1, MAX_DIM),
         default: D::Required,
         help: "number of variables",
     },
     Spec {
         name: "lower",
-        kind: Kind::Float {
-            min: f64::NEG_INFINITY,
-            max: f64::INFINITY,
-        },
+        kind: MAGNITUDE,
         default: D::Derived("the function's customary domain"),
         help: "lower bound of every variable",
     },
     Spec {
         name: "upper",
-        kind: Kind::Float {
-            min: f64::NEG_INFINITY,
-            max: f64::INFINITY,
-        },
+        kind: MAGNITUDE,
         default: D::Derived("the function's customary domain"),
         help: "upper bound of every variable",
     },
@@ -107,13 +111,13 @@ macro_rules! recording_params {
             },
             Spec {
                 name: "first",
-                kind: Kind::Int { min: 0, max: i64::MAX },
+                kind: size(0, MAX_SAMPLES),
                 default: D::Int(0),
                 help: "first training sample used",
             },
             Spec {
                 name: "samples",
-                kind: Kind::Int { min: 8, max: i64::MAX },
+                kind: size(8, MAX_SAMPLES),
                 default: D::Derived("all from `first` on"),
                 help: "number of training samples used",
             },
@@ -218,6 +222,11 @@ fn recordings(p: &Params) -> Result<(Vec<Recording>, Labelled), Error> {
         },
     };
     let trim = p.opt_float("trim_start").unwrap_or(0.0);
+    for key in ["duration", "validate_duration"] {
+        if let Some(d) = p.opt_float(key) {
+            limits::samples(d, p.float("dt")).map_err(|e| p.error(key, e))?;
+        }
+    }
     let load = |key: &str, spec: &str, duration: Option<f64>| -> Result<Recording, Error> {
         Source::parse(spec, &base, p.str("columns"), sim(duration))
             .and_then(|s| s.read_with(read).load())
@@ -244,6 +253,15 @@ fn recordings(p: &Params) -> Result<(Vec<Recording>, Labelled), Error> {
         Some(n) => first.saturating_add(n as usize),
         None => train.len(),
     };
+    if first >= train.len() {
+        return Err(p.error(
+            "first",
+            format!(
+                "first sample {first} requested but the recording has {}",
+                train.len()
+            ),
+        ));
+    }
     if first > 0 || end < train.len() {
         if end > train.len() {
             return Err(p.error(
@@ -293,22 +311,19 @@ fn validation(p: &Params, load: &Loader) -> Result<Labelled, Error> {
 const RBF_PARAMS: &[Spec] = recording_params![
     Spec {
         name: "hidden",
-        kind: POSITIVE_INT,
+        kind: size(1, MAX_DIM),
         default: D::Int(7),
         help: "hidden Gaussian nodes (seed: 7; also tried 9)",
     },
     Spec {
         name: "input_lags",
-        kind: POSITIVE_INT,
+        kind: size(1, MAX_DIM),
         default: D::Int(2),
         help: "regressors r(k)..r(k-input_lags+1) (seed: 2; its 7-input variant: 4)",
     },
     Spec {
         name: "output_lags",
-        kind: Kind::Int {
-            min: 0,
-            max: i64::MAX
-        },
+        kind: size(0, MAX_DIM),
         default: D::Int(1),
         help: "regressors y(k-1)..y(k-output_lags) (seed: 1; its 7-input variant: 3)",
     },
@@ -321,12 +336,39 @@ const RBF_PARAMS: &[Spec] = recording_params![
 ];
 
 fn build_rbf(p: &Params) -> Result<Arc<dyn Objective>, Error> {
-    let (train, validate) = recordings(p)?;
     let narx = Narx {
         input_lags: p.usize("input_lags"),
         output_lags: p.usize("output_lags"),
     };
     let net = RbfNet::new(narx.dim(), p.usize("hidden"));
+    if net.n_params() > MAX_DIM {
+        return Err(p.error(
+            "hidden",
+            format!(
+                "{} hidden x ({} regressors + 2) = {} parameters, above the limit of {MAX_DIM} variables",
+                net.hidden,
+                narx.dim(),
+                net.n_params()
+            ),
+        ));
+    }
+    let (train, validate) = recordings(p)?;
+    // The regressor matrix of a record: samples x regressors values.
+    let most = train.iter().chain(validate.iter().map(|(_, r)| r));
+    if let Some(r) = most.max_by_key(|r| r.len())
+        && (r.len() as u64).saturating_mul(narx.dim() as u64) > limits::BUDGET_F64
+    {
+        return Err(p.error(
+            "input_lags",
+            format!(
+                "{} samples x {} regressors is above the limit of {} regressor values (a memory budget of {} B)",
+                r.len(),
+                narx.dim(),
+                limits::BUDGET_F64,
+                limits::BUDGET_BYTES
+            ),
+        ));
+    }
     let mode = match p.str("mode") {
         "free-run" => Mode::FreeRun,
         _ => Mode::OneStepAhead,
@@ -362,19 +404,13 @@ const BOUC_WEN_PARAMS: &[Spec] = recording_params![
     },
     Spec {
         name: "lower",
-        kind: Kind::Float {
-            min: f64::NEG_INFINITY,
-            max: f64::INFINITY
-        },
+        kind: MAGNITUDE,
         default: D::Float(0.0),
         help: "lower bound of every (normalised) parameter (seed: 0)",
     },
     Spec {
         name: "upper",
-        kind: Kind::Float {
-            min: f64::NEG_INFINITY,
-            max: f64::INFINITY
-        },
+        kind: MAGNITUDE,
         default: D::Float(1.5),
         help: "upper bound of every (normalised) parameter (seed: 1.5)",
     },
@@ -446,10 +482,7 @@ pub fn objective_kinds() -> Vec<ObjectiveKind> {
 
 const POPULATION: Spec = Spec {
     name: "population",
-    kind: Kind::Int {
-        min: 2,
-        max: i64::MAX,
-    },
+    kind: size(2, MAX_POPULATION),
     default: D::Int(200),
     help: "individuals evaluated per generation",
 };
@@ -460,10 +493,7 @@ const GA_PARAMS: &[Spec] = &[
     probability("pm", 0.1, "mutation probability per gene"),
     Spec {
         name: "elite",
-        kind: Kind::Int {
-            min: 0,
-            max: i64::MAX,
-        },
+        kind: size(0, MAX_POPULATION),
         default: D::Int(1),
         help: "best individuals copied unchanged into the next generation",
     },
@@ -517,7 +547,7 @@ const COEFF: Kind = Kind::Float {
 const PSO_PARAMS: &[Spec] = &[
     Spec {
         name: "population",
-        kind: POSITIVE_INT,
+        kind: size(1, MAX_POPULATION),
         default: D::Int(200),
         help: "particles in the swarm",
     },
@@ -570,10 +600,7 @@ fn build_pso(p: &Params) -> Result<Arc<dyn OptimizerConfig>, Error> {
 const MSGA_PARAMS: &[Spec] = &[
     Spec {
         name: "objects",
-        kind: Kind::Int {
-            min: 2,
-            max: i64::MAX,
-        },
+        kind: size(2, MAX_POPULATION / 5),
         default: D::Int(40),
         help: "objects per membrane (5 membranes, dissertation Fig. 3.3)",
     },
@@ -644,7 +671,7 @@ fn build_nm(p: &Params) -> Result<Arc<dyn OptimizerConfig>, Error> {
 
 const RANDOM_PARAMS: &[Spec] = &[Spec {
     name: "batch",
-    kind: POSITIVE_INT,
+    kind: size(1, MAX_POPULATION),
     default: D::Int(200),
     help: "points drawn per iteration",
 }];

@@ -83,7 +83,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path, quiet: bool, report: Option<Report>) 
         seed: Some(h0.seed),
         budget: h0.budget,
     }
-    .apply(&mut suite);
+    .apply(&mut suite)?;
     if fingerprint(&suite, h0.budget) != h0.fingerprint {
         return Err(Error::Input(format!(
             "{}: suite.toml does not match its progress log (edited after the run?)",

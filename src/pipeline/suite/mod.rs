@@ -29,6 +29,7 @@
 //! functions), so `targets` and `stop_at` mean the same thing for both.
 
 use crate::base::error::Result;
+use crate::base::limits;
 use crate::base::name::RESERVED_TABLE_IDS;
 use crate::base::params::Params;
 use crate::base::{SafeName, TrialSeed};
@@ -330,7 +331,7 @@ impl Suite {
         for (span, a) in anchored.into_iter().rev() {
             text.replace_range(span, &toml::Value::String(a).to_string());
         }
-        Ok(Suite {
+        let suite = Suite {
             tables,
             path: path.to_path_buf(),
             text,
@@ -340,6 +341,29 @@ impl Suite {
             trials,
             objectives,
             optimizers,
+        };
+        if let Some(m) = suite.plan_too_large() {
+            return Err(st.at(raw.trials.span().start, format!("`trials` = {trials}: {m}")));
+        }
+        Ok(suite)
+    }
+
+    /// Why the plan's trial records would not fit in memory (see
+    /// [`limits::trial_memory`]), if they would not.
+    pub fn plan_too_large(&self) -> Option<String> {
+        let bytes = self
+            .objectives
+            .iter()
+            .map(|o| {
+                let n = (o.optimizers.len() as u64).saturating_mul(self.trials as u64);
+                limits::trial_memory(n, o.objective.dim())
+            })
+            .fold(0u64, u64::saturating_add);
+        (bytes > limits::BUDGET_BYTES).then(|| {
+            format!(
+                "the plan's trial records would take {bytes} B, above the budget of {} B (fewer trials, objectives or optimizers)",
+                limits::BUDGET_BYTES
+            )
         })
     }
 

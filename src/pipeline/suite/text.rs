@@ -5,6 +5,7 @@
 
 use crate::base::SafeName;
 use crate::base::error::{Error, Result};
+use crate::base::limits::MAX_TRIALS;
 use crate::base::params::Origin;
 use serde::de::DeserializeOwned;
 use std::collections::{BTreeMap, BTreeSet};
@@ -98,10 +99,10 @@ impl<'a> SuiteText<'a> {
         let s = u64::try_from(*seed.get_ref())
             .map_err(|_| self.at(seed.span().start, "`seed` must be >= 0"))?;
         let t = *trials.get_ref();
-        if t < 1 {
+        if !(1..=MAX_TRIALS as i64).contains(&t) {
             return Err(self.at(
                 trials.span().start,
-                format!("`trials` = {t}: expected an integer >= 1"),
+                format!("`trials` = {t}: expected an integer in [1, {MAX_TRIALS}] (a limit derived from memory)"),
             ));
         }
         Ok(Header {
