@@ -409,7 +409,7 @@ struct Target {
 fn target(name: &str) -> Target {
     match name {
         "suite" => Target {
-            inputs: 300,
+            inputs: 200,
             seeds: suites(false),
             run: run_suite,
         },
@@ -492,7 +492,12 @@ fn fuzz(name: &str, regressions: &[&[u8]]) {
         let input = std::fs::read(&replay).unwrap();
         check(&input, &mut rng, &mut failures);
     } else {
-        for input in t.seeds.iter().map(Vec::as_slice).chain(regressions.iter().copied()) {
+        for input in t
+            .seeds
+            .iter()
+            .map(Vec::as_slice)
+            .chain(regressions.iter().copied())
+        {
             check(input, &mut rng, &mut failures);
         }
         let start = Instant::now();
@@ -545,7 +550,10 @@ fn fuzz_control_suite() {
 
 #[test]
 fn fuzz_signal() {
-    fuzz("signal", &[b"sine:freq=1e308,amp=1e308", b"1e308*(1e308*(sine:freq=1))"]);
+    fuzz(
+        "signal",
+        &[b"sine:freq=1e308,amp=1e308", b"1e308*(1e308*(sine:freq=1))"],
+    );
 }
 
 #[test]
