@@ -212,6 +212,22 @@ fn report_refuses_traces_that_name_an_optimizer_the_suite_does_not_have() {
     assert_eq!(tree(root.path(), Some(&out)), outside);
 }
 
+#[cfg(unix)]
+#[test]
+fn report_refuses_a_results_folder_whose_subfolders_are_links() {
+    for sub in ["tables", "plots", "ioh"] {
+        let root = tempfile::tempdir().unwrap();
+        let out = stored_run(root.path());
+        let elsewhere = root.path().join("elsewhere");
+        std::fs::create_dir(&elsewhere).unwrap();
+        std::fs::remove_dir_all(out.join(sub)).unwrap();
+        std::os::unix::fs::symlink(&elsewhere, out.join(sub)).unwrap();
+        let r = optbench(&["report", "out"], root.path());
+        refused(&r, &[sub, "symbolic link"]);
+        assert_eq!(std::fs::read_dir(&elsewhere).unwrap().count(), 0, "{sub}");
+    }
+}
+
 /// A fitting suite whose recording is named relative to the suite file.
 const RELATIVE: &str = r#"name = "relative"
 seed = 4

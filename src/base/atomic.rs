@@ -36,6 +36,41 @@ pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<()> {
     })
 }
 
+/// Creates `sub` (a path below `root`) folder by folder, refusing a part that is a symbolic
+/// link or not a folder: a results folder received from someone else could point `tables/`
+/// anywhere, and every write below it would follow.
+pub fn create_dir_within(root: &Path, sub: &Path) -> Result<()> {
+    let rel = sub
+        .strip_prefix(root)
+        .map_err(|_| Error::Input(format!("{}: not inside {}", sub.display(), root.display())))?;
+    std::fs::create_dir_all(root)
+        .map_err(|e| Error::io(format!("creating {}", root.display()), e))?;
+    let mut at = root.to_path_buf();
+    for part in rel.components() {
+        at.push(part);
+        match std::fs::symlink_metadata(&at) {
+            Ok(m) if m.file_type().is_symlink() => {
+                return Err(Error::Input(format!(
+                    "{}: a symbolic link; a results folder's subfolders must be real folders \
+                     (remove the link and run again)",
+                    at.display()
+                )));
+            }
+            Ok(m) if !m.is_dir() => {
+                return Err(Error::Input(format!(
+                    "{}: exists and is not a folder (remove it and run again)",
+                    at.display()
+                )));
+            }
+            Ok(_) => {}
+            Err(_) => std::fs::create_dir(&at)
+                .or_else(|e| if at.is_dir() { Ok(()) } else { Err(e) })
+                .map_err(|e| Error::io(format!("creating {}", at.display()), e))?,
+        }
+    }
+    Ok(())
+}
+
 /// A new, empty temporary for `name` in `dir`: a random suffix (the OS-seeded keys of
 /// std's `RandomState`), `O_CREAT | O_EXCL` and, on Unix, `O_NOFOLLOW`.
 fn create_temporary(dir: &Path, name: &str) -> std::io::Result<(PathBuf, File)> {
@@ -154,5 +189,22 @@ mod tests {
         left.sort();
         assert_eq!(left, ["a.json", "tables"]);
         assert_eq!(std::fs::read_dir(dir.join("tables")).unwrap().count(), 0);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_linked_subfolder_is_refused_and_nothing_written_through_it() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (root, elsewhere) = (tmp.path().join("out"), tmp.path().join("elsewhere"));
+        std::fs::create_dir_all(&root).unwrap();
+        std::fs::create_dir_all(&elsewhere).unwrap();
+        std::os::unix::fs::symlink(&elsewhere, root.join("tables")).unwrap();
+        let err = create_dir_within(&root, &root.join("tables")).unwrap_err();
+        assert!(err.to_string().contains("symbolic link"), "{err}");
+        assert!(create_dir_within(&root, &root.join("tables/x")).is_err());
+        assert_eq!(std::fs::read_dir(&elsewhere).unwrap().count(), 0);
+        create_dir_within(&root, &root.join("ioh/a/b")).unwrap();
+        assert!(root.join("ioh/a/b").is_dir());
+        assert!(create_dir_within(&root, &tmp.path().join("outside")).is_err());
     }
 }

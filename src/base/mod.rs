@@ -14,6 +14,6 @@ pub mod name;
 pub mod params;
 pub mod seed;
 
-pub use atomic::{atomic_write, remove_stale_temporaries};
+pub use atomic::{atomic_write, create_dir_within, remove_stale_temporaries};
 pub use name::SafeName;
 pub use seed::{TrialSeed, standard_normal};

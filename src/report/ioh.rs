@@ -18,7 +18,7 @@
 //! the trial's last evaluation as IOHanalyzer requires. Values are raw objective values;
 //! the comment line gives the known optimum where there is one.
 
-use crate::base::error::{Error, Result};
+use crate::base::error::Result;
 use crate::base::{SafeName, atomic_write};
 use crate::harness::TrialRecord;
 use std::fmt::Write;
@@ -55,8 +55,7 @@ pub fn export(
             let data_dir = format!("data_f{fid}_{}", obj.id);
             let dat_name = format!("IOHprofiler_f{fid}_DIM{}.dat", obj.dim);
             let base = dir.join(opt);
-            std::fs::create_dir_all(base.join(&data_dir))
-                .map_err(|e| Error::io(format!("creating {}", base.display()), e))?;
+            crate::base::create_dir_within(dir, &base.join(&data_dir))?;
 
             let mut dat = String::new();
             for r in &runs {

@@ -7,7 +7,7 @@ pub mod ioh;
 pub mod paper;
 
 use crate::base::error::{Error, Result};
-use crate::base::{SafeName, atomic_write};
+use crate::base::{SafeName, atomic_write, create_dir_within};
 use crate::harness::TrialRecord;
 use crate::pipeline::store::{Provenance, read_traces};
 use crate::pipeline::suite::Suite;
@@ -151,8 +151,7 @@ pub fn generate(dir: &Path) -> Result<String> {
     let a = run.analyse();
 
     let tables = dir.join("tables");
-    std::fs::create_dir_all(&tables)
-        .map_err(|e| Error::io(format!("creating {}", tables.display()), e))?;
+    create_dir_within(dir, &tables)?;
     let mut md = String::new();
     if !run.suite.tables.is_empty() {
         md += "## Tables with reference numbers\n\n";
@@ -190,6 +189,7 @@ pub fn generate(dir: &Path) -> Result<String> {
     json.push(b'\n');
     atomic_write(&dir.join("analysis.json"), &json)?;
 
+    create_dir_within(dir, &dir.join("plots"))?;
     write_plots(&dir.join("plots"), &run, &a)?;
 
     let objectives: Vec<ioh::IohObjective<'_>> = a
@@ -201,6 +201,7 @@ pub fn generate(dir: &Path) -> Result<String> {
         })
         .collect();
     let optimizers: Vec<&SafeName> = run.suite.optimizers.iter().map(|o| &o.id).collect();
+    create_dir_within(dir, &dir.join("ioh"))?;
     ioh::export(
         &dir.join("ioh"),
         &run.suite.name,

@@ -157,9 +157,7 @@ pub fn run_suite(suite: &ControlSuite, threads: Option<usize>, out: &Path) -> Re
     };
 
     // Write: everything into the folder, each file atomically.
-    let mkdir = |d: &Path| {
-        std::fs::create_dir_all(d).map_err(|e| Error::io(format!("creating {}", d.display()), e))
-    };
+    let mkdir = |d: &Path| crate::base::create_dir_within(out, d);
     mkdir(out)?;
     let mut figures = Vec::new();
     if suite.figures {
