@@ -1,15 +1,29 @@
 // Embeds the git commit of the build in the binary, for provenance of every result.
+use std::path::Path;
 use std::process::Command;
 
-fn main() {
-    let commit = Command::new("git")
-        .args(["describe", "--always", "--dirty", "--abbrev=12"])
+fn git(args: &[&str]) -> Option<String> {
+    Command::new("git")
+        .args(args)
         .output()
         .ok()
         .filter(|o| o.status.success())
         .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
-        .unwrap_or_default();
+}
+
+fn main() {
+    let commit = git(&["describe", "--always", "--dirty", "--abbrev=12"]).unwrap_or_default();
     println!("cargo:rustc-env=OPTBENCH_GIT_COMMIT={commit}");
-    println!("cargo:rerun-if-changed=.git/HEAD");
-    println!("cargo:rerun-if-changed=.git/index");
+    // The git folder as git resolves it: in a worktree `.git` is a file, and a watched path
+    // that does not exist makes cargo rerun this script, and rebuild the crate, every time.
+    if let Some(dir) = git(&["rev-parse", "--git-dir"]) {
+        for f in ["HEAD", "index"] {
+            let p = Path::new(&dir).join(f);
+            if p.exists() {
+                println!("cargo:rerun-if-changed={}", p.display());
+            }
+        }
+    } else {
+        println!("cargo:rerun-if-changed=build.rs");
+    }
 }
