@@ -280,3 +280,75 @@ fn absurd_bounds_are_refused_and_the_largest_go_through_run_report_resume_and_me
     ok(&optbench(&["merge", "r", "--out", "m", "-q"], d));
     assert_eq!(summary(&d.join("m")), before);
 }
+
+/// Unmounts the test's tmpfs however the test ends.
+#[cfg(target_os = "linux")]
+struct Mounted(std::path::PathBuf);
+
+#[cfg(target_os = "linux")]
+impl Drop for Mounted {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg("-l").arg(&self.0).status();
+    }
+}
+
+/// A real full disk, where the test may mount a small tmpfs (Linux, as root; skipped with a
+/// message elsewhere, where the torn-line test above covers the log's side): the run fails
+/// when the disk fills, not with a panic; once there is room, `--resume` keeps every trial
+/// stored and ends with the uninterrupted run's results.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_run_on_a_full_disk_resumes_to_the_uninterrupted_results() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("s.toml"), SUITE.replace("trials = 4", "trials = 60")).unwrap();
+    ok(&optbench(&["run", "s.toml", "--out", "full", "-q"], d));
+    let log = std::fs::metadata(d.join("full/progress.jsonl"))
+        .unwrap()
+        .len();
+    let small = d.join("small");
+    std::fs::create_dir(&small).unwrap();
+    let size = format!("size={}", (log / 3).max(4096));
+    let mounted = Command::new("mount")
+        .args(["-t", "tmpfs", "-o", &size, "tmpfs"])
+        .arg(&small)
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !mounted {
+        eprintln!("skipped: cannot mount a tmpfs here (needs root on Linux)");
+        return;
+    }
+    let _guard = Mounted(small.clone());
+
+    let out = optbench(&["run", "s.toml", "--out", "small/out", "-q"], d);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        matches!(out.status.code(), Some(1 | 2)),
+        "exit {:?}: {err}",
+        out.status
+    );
+    assert!(
+        err.contains("disk full") || err.contains("No space left"),
+        "{err}"
+    );
+    let stored = log_lines(&small.join("out")).len();
+    assert!(
+        (2..121).contains(&stored),
+        "{stored} lines stored before the disk filled"
+    );
+
+    // Room again (a remount keeps the files), then resume.
+    let grown = Command::new("mount")
+        .args(["-o", "remount,size=64m"])
+        .arg(&small)
+        .status()
+        .unwrap();
+    assert!(grown.success());
+    ok(&optbench(
+        &["run", "s.toml", "--out", "small/out", "--resume", "-q"],
+        d,
+    ));
+    assert_eq!(summary(&small.join("out")), summary(&d.join("full")));
+    assert_eq!(traces(&small.join("out")), traces(&d.join("full")));
+}
