@@ -134,6 +134,34 @@ fn a_run_killed_mid_suite_resumes_to_the_uninterrupted_summary() {
     std::io::Write::write_all(&mut log, b"{\"key\":\"0123\",\"record\":{\"obj").unwrap();
     drop(log);
 
+    // Killed again while resuming, at a later point (or let finish, if it is quicker).
+    let mut child = Command::new(BIN)
+        .args([
+            "run",
+            "s.toml",
+            "--out",
+            "cut",
+            "-q",
+            "--resume",
+            "--threads",
+            "2",
+        ])
+        .current_dir(d)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let started = Instant::now();
+    while progress_lines(&d.join("cut")) < 1 + 20 && child.try_wait().unwrap().is_none() {
+        assert!(
+            started.elapsed() < Duration::from_secs(600),
+            "no progress stored"
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let _ = child.kill();
+    child.wait().unwrap();
+
     ok(&optbench(
         &[
             "run",
