@@ -28,6 +28,11 @@ pub const MAX_POPULATION: usize = 10_000;
 /// residual): 10 x 10^7 x 8 B = 0.8 GB. At 1 ms sampling that is 2.8 hours.
 pub const MAX_SAMPLES: usize = 10_000_000;
 
+/// Bytes of one recording file, checked before it is read whole: [`MAX_SAMPLES`] rows of up
+/// to a hundred bytes (a few numbers printed with full precision), the one allocation of
+/// the memory budget.
+pub const MAX_FILE_BYTES: u64 = 1 << 30;
+
 /// Trials of one objective x optimizer pair (`trials`, `--trials`, `--seeds`): each keeps
 /// its record (best point, trace) until the report, at most 2 KiB + 8 B x [`MAX_DIM`] =
 /// 34 KB: 10,000 of them are 0.34 GB. The whole plan is checked by [`trial_memory`].

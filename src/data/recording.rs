@@ -661,6 +661,17 @@ pub const JITTER_TOLERANCE: f64 = 0.01;
 /// A CSV file's text ready for the csv reader (byte-order mark dropped, blanks made tabs
 /// for a whitespace-separated file), its delimiter byte and the delimiter used.
 fn table_text(path: &Path, opts: &ReadOptions) -> Result<(Vec<u8>, u8, Delimiter)> {
+    let size = std::fs::metadata(path)
+        .map_err(|e| Error::io(format!("reading {}", path.display()), e))?
+        .len();
+    if size > crate::base::limits::MAX_FILE_BYTES {
+        return Err(Error::Input(format!(
+            "{}: {size} bytes, more than a recording may hold ({} bytes, \
+             base::limits::MAX_FILE_BYTES); cut the file or resample it coarser",
+            path.display(),
+            crate::base::limits::MAX_FILE_BYTES
+        )));
+    }
     let bytes =
         std::fs::read(path).map_err(|e| Error::io(format!("reading {}", path.display()), e))?;
     // Spreadsheet exports often start with a UTF-8 byte-order mark; csv keeps it in the
@@ -1095,6 +1106,19 @@ fn interpolate(t: &[f64], v: &[f64], at: &[f64]) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_file_too_large_is_refused_before_it_is_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("huge.csv");
+        // Sparse: the size is set, no byte is written or read.
+        let f = std::fs::File::create(&path).unwrap();
+        f.set_len(crate::base::limits::MAX_FILE_BYTES + 1).unwrap();
+        let err = Recording::read_csv(&path, &Columns::default(), &ReadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("more than a recording may hold"), "{err}");
+    }
 
     #[test]
     fn trim_start_leaves_out_the_first_seconds() {
