@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::optbench;
+use common::{optbench, refused};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -27,14 +27,6 @@ fn tree(root: &Path, skip: Option<&Path>) -> BTreeSet<PathBuf> {
         }
     }
     all
-}
-
-fn refused(out: &Output, needles: &[&str]) {
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
-    for n in needles {
-        assert!(err.contains(n), "`{n}` not in: {err}");
-    }
 }
 
 fn ok(out: &Output) {

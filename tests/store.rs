@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::optbench;
+use common::{optbench, refused, summary, traces};
 use serde_json::Value;
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
@@ -62,37 +62,6 @@ fn ok(out: &Output) -> String {
         String::from_utf8_lossy(&out.stderr)
     );
     String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-fn refused(out: &Output, needles: &[&str]) {
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
-    for n in needles {
-        assert!(err.contains(n), "`{n}` not in: {err}");
-    }
-}
-
-/// summary.json with the wall times (the only values that may differ) zeroed.
-fn summary(dir: &Path) -> Value {
-    let mut v: Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
-    for c in v["results"].as_array_mut().unwrap() {
-        c["wall_s"] = Value::from(0.0);
-    }
-    v
-}
-
-/// traces.jsonl records with wall times zeroed.
-fn traces(dir: &Path) -> Vec<Value> {
-    std::fs::read_to_string(dir.join("traces.jsonl"))
-        .unwrap()
-        .lines()
-        .map(|l| {
-            let mut v: Value = serde_json::from_str(l).unwrap();
-            v["wall_s"] = Value::from(0.0);
-            v
-        })
-        .collect()
 }
 
 fn log_lines(dir: &Path) -> Vec<String> {

@@ -89,6 +89,11 @@ def collect(ctx):
     return {"reports": reports}
 
 
+def total(key, group):
+    """A count pooled over reports: [hits, cases]."""
+    return [sum(r[key][0] for r in group), sum(r[key][1] for r in group)]
+
+
 def render(d):
     rs, f = d["reports"], {}
     f["blind-index"] = markdown_table(
@@ -97,9 +102,6 @@ def render(d):
           rate(*r["singles"]), rate(*r["pairs"]), rate(*r["false_alarms"])] for r in rs],
         right=[False] * 5)
     last, three = rs[0], rs[:3]
-
-    def total(key, group):
-        return [sum(r[key][0] for r in group), sum(r[key][1] for r in group)]
 
     fails = "; ".join(f"{c['case']} ({c['truth']}; named {c['named'] or 'nothing'})"
                       for c in last["failed"])
@@ -137,9 +139,6 @@ def history(rs, f):
     the oracle's verdicts and each seed's failures."""
     pool = [r for r in rs if r["since"]]
     first = pool[-1]
-
-    def total(key, group):
-        return [sum(r[key][0] for r in group), sum(r[key][1] for r in group)]
 
     binaries = list(dict.fromkeys(r["binary"] for r in reversed(pool)))
     s, p, fa = total("singles", pool), total("pairs", pool), total("false_alarms", pool)

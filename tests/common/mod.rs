@@ -3,6 +3,7 @@
 
 use optbench::objective::functions::{Function, TestFunction};
 use optbench::objective::{Bounds, Objective};
+use serde_json::Value;
 use std::collections::BTreeSet;
 use std::path::Path;
 use std::process::{Command, Output};
@@ -191,4 +192,36 @@ pub fn run_shipped_suite(name: &str, trials: &str, budget: &str) -> tempfile::Te
         String::from_utf8_lossy(&out.stderr)
     );
     dir
+}
+
+/// Asserts a refusal: exit 2 and every needle in stderr.
+pub fn refused(out: &Output, needles: &[&str]) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    for n in needles {
+        assert!(err.contains(n), "`{n}` not in: {err}");
+    }
+}
+
+/// summary.json with the wall times (the only values that may differ) zeroed.
+pub fn summary(dir: &Path) -> Value {
+    let mut v: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    for c in v["results"].as_array_mut().unwrap() {
+        c["wall_s"] = Value::from(0.0);
+    }
+    v
+}
+
+/// traces.jsonl records with wall times zeroed.
+pub fn traces(dir: &Path) -> Vec<Value> {
+    std::fs::read_to_string(dir.join("traces.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let mut v: Value = serde_json::from_str(l).unwrap();
+            v["wall_s"] = Value::from(0.0);
+            v
+        })
+        .collect()
 }
