@@ -14,6 +14,12 @@ fn git(args: &[&str]) -> Option<String> {
 fn main() {
     let commit = git(&["describe", "--always", "--dirty", "--abbrev=12"]).unwrap_or_default();
     println!("cargo:rustc-env=OPTBENCH_GIT_COMMIT={commit}");
+    let version = std::env::var("CARGO_PKG_VERSION").unwrap_or_default();
+    let built_from = match commit.as_str() {
+        "" => "commit unknown: built outside git".to_string(),
+        c => format!("commit {c}"),
+    };
+    println!("cargo:rustc-env=OPTBENCH_VERSION={version} ({built_from})");
     // The git folder as git resolves it: in a worktree `.git` is a file, and a watched path
     // that does not exist makes cargo rerun this script, and rebuild the crate, every time.
     if let Some(dir) = git(&["rev-parse", "--git-dir"]) {

@@ -135,7 +135,7 @@ fn bad_input_exits_2_and_writes_nothing() {
     for (args, needle) in [
         (
             vec!["--controller", "lqr", "--reference", "sweep-1-2hz"],
-            "valid: imc-rbf, pid",
+            "[possible values: imc-rbf, pid]",
         ),
         (
             vec![

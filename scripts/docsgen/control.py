@@ -26,8 +26,8 @@ VOLATILE = [r'"wall_s": [0-9.e+-]+']
 FAILED_RUN = ["control", "--controller", "imc-rbf", "--reference",
               "sine:freq=5,amp=0.2,offset=0.3", "--duration", "3", "--model-twin", "mode=off",
               "--plant", "creep=on", "--seed", "1"]
-PID_NO_MODE = ["control", "--controller", "pid", "--reference", "sweep-1-2hz", "--param",
-               "kp=1.0", "--param", "ki=0.8", "--param", "kd=0.6", "--plant", "mode=off"]
+PID_NO_MODE = ["control", "--controller", "pid", "--reference", "sweep-1-2hz", "--controller-param",
+               "kp=1.0", "--controller-param", "ki=0.8", "--controller-param", "kd=0.6", "--plant", "mode=off"]
 
 
 def collect(ctx):
@@ -144,7 +144,7 @@ def render(d):
         f"{sig(seedpid['fail_s'], 2)} s in "
         f"{'every trial' if seedpid['failures'] == seedpid['trials'] else str(seedpid['failures']) + ' trials'}"
         f" (without the mode it tracks at {mm(pid_nm)} mm: `optbench control --controller pid "
-        f"--reference sweep-1-2hz --param kp=1.0 --param ki=0.8 --param kd=0.6 --plant "
+        f"--reference sweep-1-2hz --controller-param kp=1.0 --controller-param ki=0.8 --controller-param kd=0.6 --plant "
         f"mode=off`). Against a PID tuned on the twin the IMC's median RMSE is lower by "
         + ", ".join(f"{ratio[r]:.3g}x at {hz(r)}" for r in REFS)
         + f" ({sig(imc['sweep-1-10hz']['median'])} vs {sig(pid['sweep-1-10hz']['median'])} mm "

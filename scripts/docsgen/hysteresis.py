@@ -29,9 +29,9 @@ def collect(ctx):
     ctx.optbench("simulate", "--columns", "t_s,u_V,y_mm", "--out", twin)
     fit = ctx.scratch / "fit-msga"
     budget = ["--budget", "3000"] if ctx.small else []
-    ctx.optbench("fit", "--recording", twin / "sine-1hz.csv", "--validate",
+    ctx.optbench("fit", "--train", twin / "sine-1hz.csv", "--validate",
                  twin / "validation-chirp-10-1hz.csv", "--columns", "t_s,u_V,y_mm", "--model",
-                 "bouc-wen", "--optimizer", "msga", "--param", "normalize=false", "--out", fit,
+                 "bouc-wen", "--optimizer", "msga", "--model-param", "normalize=false", "--out", fit,
                  *budget)
     # Latency: the best 28 Hz method (PSO) with and without a 1 ms delay in the twin.
     latency = {}
@@ -39,11 +39,11 @@ def collect(ctx):
         rmse = []
         for seed in range(1, (2 if ctx.small else FIT_SEEDS) + 1):
             d = ctx.scratch / f"latency-{seed}-{label.replace(' ', '')}"
-            args = ["fit", "--recording", "twin:sine:freq=28,amp=2.3,offset=2.35", "--param",
+            args = ["fit", "--train", "twin:sine:freq=28,amp=2.3,offset=2.35", "--model-param",
                     "duration=1", "--model", "bouc-wen", "--optimizer", "pso", "--seed", seed,
                     "--out", d, *budget]
             if twin_over:
-                args += ["--param", f"twin={twin_over}"]
+                args += ["--model-param", f"twin={twin_over}"]
             ctx.optbench(*args)
             rmse.append(next(m["value"] for m in read_json(d / "fit.json")["metrics"]
                              if m["name"] == "train RMSE [mm]"))
@@ -154,7 +154,7 @@ def render(d):
     f["hyst-latency"] = (
         f"- The dissertation's Bouc-Wen errors grow with frequency much more than ours (MSGA: "
         f"{sig(ms_1, 2)} -> {sig(ms_28, 2)} mm from 1 to 28 Hz). A 1 ms input-output latency "
-        f"in the twin (`--param twin=delay=0.001`) changes the 28 Hz PSO fit's training RMSE "
+        f"in the twin (`--model-param twin=delay=0.001`) changes the 28 Hz PSO fit's training RMSE "
         f"from {sig(lat['none'], 2)} to {sig(lat['1 ms'], 2)} mm (medians of {n} `optbench "
         f"fit` seeds, {thousands(d['fit_budget'])} evaluations each), so latency can explain "
         "part of the dissertation's rate dependence, not all of it.")

@@ -26,9 +26,9 @@ def cut(src, dst, t0, dy):
 
 def fit(ctx, name, args):
     out = ctx.scratch / f"multirecord-{name}"
-    ctx.optbench("fit", "--recording", ctx.scratch / "mr-twin" / "sine-1hz.csv",
-                 "--recording", ctx.scratch / "rec2.csv", "--validate", ctx.scratch / "val.csv",
-                 "--columns", "t_s,u_V,y_mm", "--model", "bouc-wen", "--param", "d0=true",
+    ctx.optbench("fit", "--train", ctx.scratch / "mr-twin" / "sine-1hz.csv",
+                 "--train", ctx.scratch / "rec2.csv", "--validate", ctx.scratch / "val.csv",
+                 "--columns", "t_s,u_V,y_mm", "--model", "bouc-wen", "--model-param", "d0=true",
                  *args, "--out", out)
     d = read_json(out / "fit.json")
     m = {x["name"]: x["value"] for x in d["metrics"]}
@@ -48,7 +48,7 @@ def collect(ctx):
     return {
         "cmaes": fit(ctx, "cmaes", ["--optimizer", "cmaes",
                                     *(small or ["--budget", "100000"])]),
-        "cmaes_rest": fit(ctx, "cmaes-rest", ["--optimizer", "cmaes", "--param", "h0=false",
+        "cmaes_rest": fit(ctx, "cmaes-rest", ["--optimizer", "cmaes", "--model-param", "h0=false",
                                               *(small or ["--budget", "100000"])]),
         "msga": fit(ctx, "msga", ["--optimizer", "msga", *small]),
     }

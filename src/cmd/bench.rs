@@ -2,7 +2,7 @@
 
 use crate::base::error::{Error, Result};
 use crate::base::limits::MAX_THREADS;
-use crate::speed::{BenchConfig, run as measure};
+use crate::speed::{BenchConfig, STAGES, run_with_progress};
 
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
@@ -12,6 +12,9 @@ pub struct BenchArgs {
     /// Threads for the all-thread figures (default: one per core).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_THREADS as i64))]
     pub threads: Option<u32>,
+    /// No progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
     /// Also write the figures as JSON to this file (read by scripts/compare-peers).
     #[arg(long)]
     pub json: Option<std::path::PathBuf>,
@@ -23,14 +26,14 @@ pub fn run(a: BenchArgs) -> Result<()> {
     } else {
         BenchConfig::full()
     };
-    let report = match a.threads {
-        Some(t) => rayon::ThreadPoolBuilder::new()
-            .num_threads(t as usize)
-            .build()
-            .map_err(|e| Error::Input(format!("thread pool: {e}")))?
-            .install(|| measure(&cfg)),
-        None => measure(&cfg),
-    };
+    let bar = super::progress_bar(STAGES as u64, "measurements", a.quiet);
+    let report = super::with_threads(a.threads, || {
+        Ok(run_with_progress(&cfg, &mut |stage| {
+            bar.inc(1);
+            bar.set_message(stage.to_string());
+        }))
+    })?;
+    bar.finish_and_clear();
     print!("{}", report.render());
     if let Some(path) = &a.json {
         let text = serde_json::to_string_pretty(&report.to_json())

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 #[derive(clap::Args, Debug)]
 pub struct ControlArgs {
     /// Controller: imc-rbf (the dissertation's IMC with two RBF networks) or pid (eq. 4.9).
-    #[arg(long)]
+    #[arg(long, value_parser = ["imc-rbf", "pid"])]
     pub controller: String,
     /// Reference in mm: sweep-1-2hz, sweep-1-3hz, sweep-1-4hz, sweep-1-10hz (the dissertation's),
     /// or a signal spec such as "sine:freq=5,amp=0.2,offset=0.3" (with --duration).
@@ -22,10 +22,10 @@ pub struct ControlArgs {
     /// --model-twin "mode=off" --plant "creep=on" for a model/plant mismatch.
     #[arg(long)]
     pub model_twin: Option<String>,
-    /// Controller parameter, repeatable: --param ki=0.4 --param learning_rate=0.05
+    /// Controller parameter, repeatable: --controller-param ki=0.4 --controller-param learning_rate=0.05
     /// (pid: kp, ki, kd; imc-rbf: learning_rate, momentum, error_scale, sensitivity,
     /// model_mode, model_budget, ...; a wrong key lists the valid ones).
-    #[arg(long = "param", value_name = "KEY=VALUE")]
+    #[arg(long = "controller-param", alias = "param", value_name = "KEY=VALUE")]
     pub params: Vec<String>,
     /// Seconds at the start counted as the transient (figures and the steady RMSE).
     #[arg(long, default_value_t = 1.0)]

@@ -28,7 +28,7 @@ pub struct DiagnoseArgs {
     pub holdout: Option<f64>,
     /// Model family: bouc-wen (n fitted, kept only if BIC says so) or bouc-wen-n1 (n = 1).
     /// Default: bouc-wen; bouc-wen-n1 for --proof (the twin's n is 1; ten times faster).
-    #[arg(long)]
+    #[arg(long, value_parser = ["bouc-wen", "bouc-wen-n1"])]
     pub model: Option<String>,
     /// Time, input and output column names.
     #[arg(long, default_value = "t,u,y")]
@@ -48,8 +48,12 @@ pub struct DiagnoseArgs {
     /// Output folder (default: results/diagnose, or results/diagnose-proof with --proof).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Seed of the fits' and the bootstrap's random streams.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Worker threads (default: one per core). Results do not depend on it.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=limits::MAX_THREADS as i64))]
+    pub threads: Option<u32>,
     /// Candidate effects, comma-separated (default: all eight).
     #[arg(long)]
     pub effects: Option<String>,
@@ -76,7 +80,7 @@ pub struct DiagnoseArgs {
     /// auto (diagnosed under zoh; if the final model has the hysteresis inside the
     /// mechanical feedback, the only block that sees the hold, it is refitted under each
     /// and the one the data support best is kept).
-    #[arg(long, default_value = "zoh")]
+    #[arg(long, default_value = "zoh", value_parser = ["zoh", "linear", "bandlimited", "auto"])]
     pub hold: String,
     /// The fewest RK4 sub-steps per sample of that integrator (more where the fitted mode
     /// needs them): raise it to check that a result does not depend on the integration.
@@ -120,6 +124,10 @@ fn effects(spec: &Option<String>) -> Result<Vec<Effect>> {
 }
 
 pub fn run(a: DiagnoseArgs) -> Result<()> {
+    super::with_threads(a.threads, move || diagnose(a))
+}
+
+fn diagnose(a: DiagnoseArgs) -> Result<()> {
     let model = a
         .model
         .clone()

@@ -7,21 +7,21 @@ use std::path::PathBuf;
 pub struct FitArgs {
     /// Training recording: a CSV file, twin:SIGNAL or eq318:SIGNAL (see `optbench list`).
     /// Repeatable: several records fitted together (parameters shared, costs summed; with
-    /// `--param d0=true` an offset per record; bouc-wen also fits each record's initial
-    /// hysteretic state, `--param h0=false` starts them from rest).
-    #[arg(long, required = true)]
-    pub recording: Vec<String>,
+    /// `--model-param d0=true` an offset per record; bouc-wen also fits each record's initial
+    /// hysteretic state, `--model-param h0=false` starts them from rest).
+    #[arg(long, required = true, alias = "recording")]
+    pub train: Vec<String>,
     /// Held-out recording (same forms); the model is never fitted to it. Repeatable. With
     /// several records (training or validation), bouc-wen refits each validation record's
     /// own offset (with d0) and initial state on it, the actuator's parameters held fixed
-    /// (`--param refit_validation=never` keeps the dissertation's protocol).
+    /// (`--model-param refit_validation=never` keeps the dissertation's protocol).
     #[arg(long)]
     pub validate: Vec<String>,
-    /// Model to fit (a fitting objective of `optbench list`, e.g. bouc-wen or rbf).
-    #[arg(long)]
+    /// Model to fit (a fitting objective of `optbench list`).
+    #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(crate::registry::fitting_kind_names()))]
     pub model: String,
-    /// Optimizer (ga, pso, msga, bp, random).
-    #[arg(long, default_value = "msga")]
+    /// Optimizer (`optbench list` gives each one's parameters).
+    #[arg(long, default_value = "msga", value_parser = clap::builder::PossibleValuesParser::new(crate::registry::optimizer_names()))]
     pub optimizer: String,
     /// Time, input and output column names of CSV recordings.
     #[arg(long, default_value = "t,u,y")]
@@ -41,14 +41,19 @@ pub struct FitArgs {
     /// Function evaluations (default: the dissertation's 200 individuals x 150 iterations).
     #[arg(long, default_value_t = 30_000, value_parser = clap::value_parser!(u64).range(1..))]
     pub budget: u64,
+    /// Seed of the optimizer's random stream.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Model parameter, repeatable: --param mode=free-run --param hidden=9.
-    #[arg(long = "param", value_name = "KEY=VALUE")]
+    /// Model parameter, repeatable: --model-param mode=free-run --model-param hidden=9.
+    #[arg(long = "model-param", alias = "param", value_name = "KEY=VALUE")]
     pub params: Vec<String>,
-    /// Optimizer parameter, repeatable: --opt population=100.
-    #[arg(long = "opt", value_name = "KEY=VALUE")]
+    /// Optimizer parameter, repeatable: --optimizer-param population=100.
+    #[arg(long = "optimizer-param", alias = "opt", value_name = "KEY=VALUE")]
     pub opt: Vec<String>,
+    /// Worker threads for the optimizer's batched evaluations (default: one per core).
+    /// Results do not depend on it.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=crate::base::limits::MAX_THREADS as i64))]
+    pub threads: Option<u32>,
     /// Output folder (default: results/fit-MODEL-OPTIMIZER).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -58,12 +63,12 @@ pub fn run(a: FitArgs) -> Result<()> {
     let out = a.out.clone().unwrap_or_else(|| {
         PathBuf::from("results").join(format!("fit-{}-{}", a.model, a.optimizer))
     });
-    print!(
-        "{}",
+    let threads = a.threads;
+    let text = super::with_threads(threads, move || {
         crate::pipeline::single_fit::run_fit(&crate::pipeline::single_fit::FitRequest {
             model: a.model,
             optimizer: a.optimizer,
-            recording: a.recording.join(" | "),
+            recording: a.train.join(" | "),
             validate: (!a.validate.is_empty()).then(|| a.validate.join(" | ")),
             columns: a.columns,
             resample: a.resample,
@@ -74,7 +79,8 @@ pub fn run(a: FitArgs) -> Result<()> {
             model_params: a.params,
             optimizer_params: a.opt,
             out,
-        })?
-    );
+        })
+    })?;
+    print!("{text}");
     Ok(())
 }

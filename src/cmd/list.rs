@@ -1,10 +1,46 @@
 //! `optbench list`: every objective and optimizer kind with its parameters and defaults.
 
+use crate::base::error::{Error, Result};
 use crate::registry::{objective_kinds, optimizer_kinds};
 use crate::render::table::markdown;
 
-pub fn run() {
-    print!("{}", list());
+#[derive(clap::Args, Debug)]
+pub struct ListArgs {
+    /// Print JSON (objectives and optimizers with their parameters) for scripts.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: ListArgs) -> Result<()> {
+    if a.json {
+        let text = serde_json::to_string_pretty(&list_json())
+            .map_err(|e| Error::Input(format!("list as JSON: {e}")))?;
+        println!("{text}");
+    } else {
+        print!("{}", list());
+    }
+    Ok(())
+}
+
+/// The same content as [`list`], as data: `{"objectives": [...], "optimizers": [...]}`, each
+/// kind with `name`, `help` and `params` (`name`, `type`, `default`, `help`).
+pub fn list_json() -> serde_json::Value {
+    let kind = |name: &str, help: &str, params: &[crate::base::params::Spec]| {
+        serde_json::json!({
+            "name": name,
+            "help": help,
+            "params": params.iter().map(|p| serde_json::json!({
+                "name": p.name,
+                "type": p.kind.to_string(),
+                "default": p.default.to_string(),
+                "help": p.help,
+            })).collect::<Vec<_>>(),
+        })
+    };
+    serde_json::json!({
+        "objectives": objective_kinds().iter().map(|k| kind(k.name, k.help, k.params)).collect::<Vec<_>>(),
+        "optimizers": optimizer_kinds().iter().map(|k| kind(k.name, k.help, k.params)).collect::<Vec<_>>(),
+    })
 }
 
 /// The text of `optbench list`.

@@ -13,14 +13,19 @@ pub mod list;
 pub mod merge;
 pub mod report;
 pub mod run;
+pub mod shell;
 pub mod simulate;
 
 use crate::base::error::Result;
 use clap::{Parser, Subcommand};
 
+/// The version with the commit it was built from (`git describe --dirty`, set by build.rs),
+/// so a result can be traced to its source.
+pub const VERSION: &str = env!("OPTBENCH_VERSION");
+
 /// Reproducible benchmarks of optimizers on test functions and hysteresis fitting.
 #[derive(Parser, Debug)]
-#[command(name = "optbench", version, about, long_about = None)]
+#[command(name = "optbench", version = VERSION, about, long_about = None)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -44,13 +49,17 @@ pub enum Command {
     /// fit the better model (or, with --proof, run the concealed-effect proof).
     Diagnose(diagnose::DiagnoseArgs),
     /// List objectives and optimizers with their parameters and defaults.
-    List,
+    List(list::ListArgs),
     /// Measure evaluation speed on this machine: scalar, batched and all-thread paths of
     /// every objective kind, harness overhead, MSGA threads.
     Bench(bench::BenchArgs),
     /// Closed-loop hysteresis compensation on the twin: IMC with two RBF networks or
     /// incremental PID tracking a reference; signals, numbers and figures in --out.
     Control(control::ControlArgs),
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell) to stdout.
+    Completions(shell::CompletionsArgs),
+    /// Write the man pages (optbench.1 and one per subcommand) into a folder.
+    Man(shell::ManArgs),
 }
 
 /// Entry point: returns the process exit code.
@@ -73,11 +82,39 @@ fn dispatch(cli: Cli) -> Result<()> {
         Command::Fit(a) => fit::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Diagnose(a) => diagnose::run(a),
-        Command::List => {
-            list::run();
-            Ok(())
-        }
+        Command::List(a) => list::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Control(a) => control::run(a),
+        Command::Completions(a) => shell::completions(a),
+        Command::Man(a) => shell::man(a),
     }
+}
+
+/// Runs `f` on a pool of `threads` workers (rayon's global pool, one per core, when None).
+/// Results never depend on it: every random stream is seeded per task, not per thread.
+fn with_threads<T: Send>(threads: Option<u32>, f: impl FnOnce() -> Result<T> + Send) -> Result<T> {
+    match threads {
+        None => f(),
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n as usize)
+            .build()
+            .map_err(|e| crate::base::error::Error::Input(format!("--threads {n}: {e}")))?
+            .install(f),
+    }
+}
+
+/// A progress bar on stderr over `len` steps of `what`; hidden when `quiet` or when stderr or
+/// stdout is not a terminal (logs and pipes get only the results).
+pub fn progress_bar(len: u64, what: &str, quiet: bool) -> indicatif::ProgressBar {
+    use std::io::IsTerminal;
+    if quiet || !std::io::stderr().is_terminal() || !std::io::stdout().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(len);
+    if let Ok(style) = indicatif::ProgressStyle::with_template(&format!(
+        "{{elapsed_precise}} [{{bar:40}}] {{pos}}/{{len}} {what} ({{eta}} left) {{msg}}"
+    )) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
 }

@@ -10,6 +10,9 @@ pub struct ReportArgs {
     pub results: PathBuf,
     /// A second results folder of the same suite: print the differences instead.
     pub other: Option<PathBuf>,
+    /// No table: only the path of the report.
+    #[arg(long, short)]
+    pub quiet: bool,
 }
 
 pub fn run(args: ReportArgs) -> Result<()> {
@@ -22,7 +25,9 @@ pub fn run(args: ReportArgs) -> Result<()> {
                 false => None, // nothing to lock; `generate` says what is missing
             };
             let table = crate::report::generate(&args.results)?;
-            print!("{table}");
+            if !args.quiet {
+                print!("{table}");
+            }
             println!("\nreport: {}", args.results.join("report.md").display());
         }
     }

@@ -213,14 +213,16 @@ impl ControllerSpec {
     }
 }
 
-/// Splits `key=value` items (CLI `--param`), refusing items without `=`.
+/// Splits `key=value` items (CLI `--controller-param`), refusing items without `=`.
 pub fn key_values(items: &[String]) -> Result<Vec<(String, String)>> {
     items
         .iter()
         .map(|s| {
             s.split_once('=')
                 .map(|(k, v)| (k.trim().to_string(), v.trim().to_string()))
-                .ok_or_else(|| Error::Input(format!("--param `{s}`: expected KEY=VALUE")))
+                .ok_or_else(|| {
+                    Error::Input(format!("--controller-param `{s}`: expected KEY=VALUE"))
+                })
         })
         .collect()
 }

@@ -356,20 +356,15 @@ pub struct ReadOptions {
 
 /// The folder of recorded data sets (kept outside the repository, read by path).
 ///
-/// `$OPTBENCH_DATA` if set and non-empty; otherwise `../shared/data` relative to the current
-/// directory if that folder exists (the CI layout: data beside the checkout); otherwise
-/// `<crate root>/../shared/data`, so tests and binaries run from elsewhere still find it.
-/// The path may not exist: callers check and say where they looked.
+/// `$OPTBENCH_DATA` if set and non-empty; otherwise `shared/data` beside the checkout the
+/// binary was built from (`<crate root>/../shared/data`), wherever it is run from: the same
+/// folder as `../shared/data` seen from the checkout, never one that depends on the working
+/// directory. The path may not exist: callers check and say where they looked.
 pub fn data_dir() -> PathBuf {
     if let Some(dir) = std::env::var_os("OPTBENCH_DATA").filter(|v| !v.is_empty()) {
         return PathBuf::from(dir);
     }
-    let rel = Path::new("../shared/data");
-    let dir = if rel.is_dir() {
-        rel.to_path_buf()
-    } else {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data")
-    };
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
     // Resolved (no `..`) when it exists, so messages show where the data really is.
     dir.canonicalize().unwrap_or(dir)
 }

@@ -96,11 +96,7 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
         ));
     }
     let kinds = objective_kinds();
-    let fit_kinds: Vec<&str> = kinds
-        .iter()
-        .filter(|k| k.params.iter().any(|p| p.name == "recording"))
-        .map(|k| k.name)
-        .collect();
+    let fit_kinds = crate::registry::fitting_kind_names();
     let kind = kinds
         .iter()
         .find(|k| k.name == req.model && fit_kinds.contains(&k.name))
@@ -132,7 +128,7 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
     if let Some(s) = req.trim_start {
         given.insert("trim_start".into(), (toml::Value::Float(s), 0));
     }
-    pairs("--param", &req.model_params, &mut given)?;
+    pairs("--model-param", &req.model_params, &mut given)?;
     let params = Params::validate(
         kind.params,
         &given,
@@ -155,7 +151,7 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
             ))
         })?;
     let mut ogiven = BTreeMap::new();
-    pairs("--opt", &req.optimizer_params, &mut ogiven)?;
+    pairs("--optimizer-param", &req.optimizer_params, &mut ogiven)?;
     let oparams = Params::validate(
         okind.params,
         &ogiven,

@@ -455,6 +455,21 @@ fn build_bouc_wen(p: &Params) -> Result<Arc<dyn Objective>, Error> {
     Ok(Arc::new(fit))
 }
 
+/// The objective kinds that fit a model to recordings (those with a `recording`), the
+/// models `optbench fit --model` accepts.
+pub fn fitting_kind_names() -> Vec<&'static str> {
+    objective_kinds()
+        .iter()
+        .filter(|k| k.params.iter().any(|p| p.name == "recording"))
+        .map(|k| k.name)
+        .collect()
+}
+
+/// Every optimizer kind's name.
+pub fn optimizer_names() -> Vec<&'static str> {
+    optimizer_kinds().iter().map(|k| k.name).collect()
+}
+
 /// Every objective kind.
 pub fn objective_kinds() -> Vec<ObjectiveKind> {
     use TestFunction::*;

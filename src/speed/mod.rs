@@ -160,8 +160,16 @@ pub struct ExplicitCheck {
     pub batched: Vec<f64>,
 }
 
+/// The measurements [`run_with_progress`] announces, for a progress bar's length.
+pub const STAGES: usize = 10;
+
 /// Runs every measurement.
 pub fn run(cfg: &BenchConfig) -> BenchReport {
+    run_with_progress(cfg, &mut |_| {})
+}
+
+/// [`run`], calling `stage` with the name of each of the [`STAGES`] measurements as it starts.
+pub fn run_with_progress(cfg: &BenchConfig, stage: &mut dyn FnMut(&str)) -> BenchReport {
     let threads = rayon::current_num_threads();
     let mut rows = Vec::new();
     let (u, y) = fixtures::record(cfg.samples);
@@ -171,6 +179,7 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
     let pop = fixtures::bouc_wen_population(cfg.population, 7);
     let input = FastInput::new(&u, &y, 1);
     let mut out = vec![0.0; pop.len()];
+    stage("bouc-wen");
     rows.push(Row {
         name: "bouc-wen".into(),
         unit: "M samples/s",
@@ -205,6 +214,7 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
             batched,
         }
     };
+    stage("bouc-wen (explicit recurrence)");
     rows.push(Row {
         name: "bouc-wen (explicit recurrence)".into(),
         unit: "M samples/s",
@@ -222,6 +232,7 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         }),
         threads,
     });
+    stage("bouc-wen (accurate kernel)");
     let accurate_s = time(cfg.repeats.min(3), || {
         for (p, o) in pop.iter().zip(out.iter_mut()) {
             *o = bouc_wen::cost(p, &u, &y);
@@ -253,6 +264,7 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         (Mode::OneStepAhead, "one-step"),
         (Mode::FreeRun, "free-run"),
     ] {
+        stage(&format!("rbf 3-7-1 {tag}"));
         rows.push(Row {
             name: format!("rbf 3-7-1 {tag}"),
             unit: "M samples/s",
@@ -280,6 +292,7 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         let f = function(kind, dim);
         let xs = sample_points(f.bounds(), points, 9);
         let mut vals = vec![0.0; points];
+        stage(&format!("{}-30", kind.name()));
         rows.push(Row {
             name: format!("{}-30", kind.name()),
             unit: "M evals/s",
@@ -297,11 +310,17 @@ pub fn run(cfg: &BenchConfig) -> BenchReport {
         });
     }
 
+    stage("harness overhead");
+    let harness_overhead = harness_overhead(cfg);
+    stage("msga threads");
+    let msga_threads_speedup = msga_threads(cfg, 0);
+    stage("msga threads, lagged migration");
+    let msga_threads_speedup_lagged = msga_threads(cfg, 1);
     BenchReport {
         rows,
-        harness_overhead: harness_overhead(cfg),
-        msga_threads_speedup: msga_threads(cfg, 0),
-        msga_threads_speedup_lagged: msga_threads(cfg, 1),
+        harness_overhead,
+        msga_threads_speedup,
+        msga_threads_speedup_lagged,
         accelerated: bouc_wen_fast::accelerated(),
         threads,
         samples: cfg.samples,
@@ -475,8 +494,14 @@ mod tests {
             repeats: 1,
             evaluations: 2000,
         };
-        let r = run(&cfg);
+        let mut stages = Vec::new();
+        let r = run_with_progress(&cfg, &mut |s| stages.push(s.to_string()));
         assert_eq!(r.rows.len(), 7);
+        // Every row announced by its own name, then the three whole-run figures.
+        assert_eq!(stages.len(), STAGES);
+        for (row, stage) in r.rows.iter().zip(&stages) {
+            assert_eq!(&row.name, stage);
+        }
         for row in &r.rows {
             assert!(row.scalar_s > 0.0 && row.batched_s > 0.0 && row.threads_s > 0.0);
         }
