@@ -1,4 +1,5 @@
-// Embeds the git commit of the build in the binary, for provenance of every result.
+// Embeds the git commit and the compiler of the build in the binary, for provenance of
+// every result.
 use std::path::Path;
 use std::process::Command;
 
@@ -14,6 +15,15 @@ fn git(args: &[&str]) -> Option<String> {
 fn main() {
     let commit = git(&["describe", "--always", "--dirty", "--abbrev=12"]).unwrap_or_default();
     println!("cargo:rustc-env=OPTBENCH_GIT_COMMIT={commit}");
+    // The compiler, for provenance.json (cargo names it in RUSTC).
+    let rustc = std::env::var("RUSTC").unwrap_or_else(|_| "rustc".into());
+    let version = Command::new(rustc)
+        .arg("--version")
+        .output()
+        .ok()
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+        .unwrap_or_default();
+    println!("cargo:rustc-env=OPTBENCH_RUSTC_VERSION={version}");
     // The git folder as git resolves it: in a worktree `.git` is a file, and a watched path
     // that does not exist makes cargo rerun this script, and rebuild the crate, every time.
     if let Some(dir) = git(&["rev-parse", "--git-dir"]) {
