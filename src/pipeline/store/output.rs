@@ -116,12 +116,16 @@ pub fn claim(dir: &Path, suite: &str, overwrite: bool) -> Result<()> {
             dir.display()
         ),
         None => {
-            let shown: Vec<&str> = names.iter().take(5).map(String::as_str).collect();
+            let theirs: Vec<&str> = names
+                .iter()
+                .map(String::as_str)
+                .filter(|n| !is_ours(n))
+                .collect();
             format!(
                 "{}: is not empty and holds no optbench results ({}{}); {how}",
                 dir.display(),
-                shown.join(", "),
-                if names.len() > 5 { ", ..." } else { "" }
+                theirs[..theirs.len().min(5)].join(", "),
+                if theirs.len() > 5 { ", ..." } else { "" }
             )
         }
     }))
