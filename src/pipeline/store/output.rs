@@ -220,7 +220,8 @@ impl FreshFolder {
     }
 
     /// Puts the new folder in place of the old one and removes the old one.
-    pub fn commit(self) -> Result<()> {
+    pub fn commit(mut self) -> Result<()> {
+        let staged = std::mem::take(&mut self.staged);
         let parent = self.target.parent().unwrap_or(Path::new("."));
         let name = self
             .target
@@ -229,9 +230,9 @@ impl FreshFolder {
             .to_string_lossy();
         let retired = parent.join(format!(".{name}{RETIRED_TAG}{}", suffix(0)));
         let err = |e| Error::io(format!("replacing {}", self.target.display()), e);
-        if exchange(&self.staged, &self.target).is_ok() {
+        if exchange(&staged, &self.target).is_ok() {
             // The staged name now holds the old folder.
-            return remove_entry(&self.staged);
+            return remove_entry(&staged);
         } else {
             // No atomic exchange here: two renames, the folder briefly absent.
             match std::fs::rename(&self.target, &retired) {
@@ -239,9 +240,18 @@ impl FreshFolder {
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
                 Err(e) => return Err(err(e)),
             }
-            std::fs::rename(&self.staged, &self.target).map_err(err)?;
+            std::fs::rename(&staged, &self.target).map_err(err)?;
         }
         remove_entry(&retired)
+    }
+}
+
+impl Drop for FreshFolder {
+    /// A folder never committed (its writing failed) is removed; the old one stays.
+    fn drop(&mut self) {
+        if !self.staged.as_os_str().is_empty() {
+            let _ = remove_entry(&self.staged);
+        }
     }
 }
 
@@ -314,6 +324,12 @@ mod tests {
         let f = FreshFolder::begin(root, "ioh").unwrap();
         f.commit().unwrap();
         assert_eq!(names(root), ["ioh", "plots"]);
+        // One abandoned (its writing failed): the old folder stays, the new one goes.
+        let f = FreshFolder::begin(root, "plots").unwrap();
+        std::fs::write(f.path().join("half.svg"), "half").unwrap();
+        drop(f);
+        assert_eq!(names(root), ["ioh", "plots"]);
+        assert_eq!(names(&root.join("plots")), ["new.svg"]);
     }
 
     #[cfg(unix)]
