@@ -11,8 +11,9 @@ use common::{optbench, read_json, refused};
 use std::path::Path;
 use std::process::{Command, Output};
 
-/// Two functions in two dimensions, one on a narrow box (another instance), and a fit: 5
-/// objectives x 2 optimizers x 3 trials = 30 runs in 4 (function, dimension) pairs.
+/// Two functions in two dimensions, one on a narrow box (another instance), one at a second
+/// budget (an instance of its own), and a fit: 6 objectives x 2 optimizers x 3 trials = 36
+/// runs in 4 (function, dimension) pairs.
 const TINY: &str = r#"name = "tiny"
 seed = 7
 trials = 3
@@ -22,6 +23,12 @@ budget = 300
 kind = "griewank"
 id = "griewank-2d"
 dim = 2
+
+[[objective]]
+kind = "griewank"
+id = "griewank-2d-long"
+dim = 2
+budget = 400
 
 [[objective]]
 kind = "griewank"
@@ -149,7 +156,7 @@ fn iohinspector_loads_every_run_with_the_summarys_finals() {
         String::from_utf8_lossy(&check.stderr)
     );
     assert!(
-        stdout.contains("loaded 30 runs of 30 in 8 (function, dimension, algorithm) groups"),
+        stdout.contains("loaded 36 runs of 36 in 8 (function, dimension, algorithm) groups"),
         "{stdout}"
     );
     // The check can fail: a final value changed in one .dat file is caught.
@@ -190,11 +197,16 @@ fn the_export_has_fixed_ids_instances_and_errors_to_the_optimum() {
         .collect();
     // Griewank in 2 and 5 dimensions: one function id; the narrow box another instance.
     assert_eq!(&rows[0][..5], ["2", "griewank", "2", "1", "griewank-2d"]);
-    assert_eq!(&rows[1][..5], ["2", "griewank", "5", "1", "griewank-5d"]);
-    assert_eq!(&rows[2][..4], ["3", "schwefel", "2", "1"]);
-    assert_eq!(&rows[3][..3], ["3", "schwefel", "2"]);
-    assert_ne!(rows[3][3], "1");
-    assert_eq!(&rows[4][..2], ["101", "bouc-wen"]);
+    // The same function at another budget: an instance of its own.
+    assert_eq!(
+        &rows[1][..5],
+        ["2", "griewank", "2", "2", "griewank-2d-long"]
+    );
+    assert_eq!(&rows[2][..5], ["2", "griewank", "5", "1", "griewank-5d"]);
+    assert_eq!(&rows[3][..4], ["3", "schwefel", "2", "1"]);
+    assert_eq!(&rows[4][..3], ["3", "schwefel", "2"]);
+    assert_ne!(rows[4][3], "1");
+    assert_eq!(&rows[5][..2], ["101", "bouc-wen"]);
     // Schwefel's values are errors to its (negative) optimum: never negative, and the
     // meta file's best equals summary's final minus the optimum.
     let meta = read_json(&ioh.join("RS/IOHprofiler_f3_schwefel.json"));
@@ -229,7 +241,7 @@ fn the_export_has_fixed_ids_instances_and_errors_to_the_optimum() {
         let y: f64 = l.split(' ').nth(1).unwrap().parse().unwrap();
         assert!(y >= 0.0, "{l}");
     }
-    assert!(rows[3][5].contains("optimum unknown"), "{csv}");
+    assert!(rows[4][5].contains("optimum unknown"), "{csv}");
     // No legacy .info beside the meta files (loaders would read every run twice).
     assert!(!files(&ioh).iter().any(|f| f.ends_with(".info")));
 }

@@ -14,9 +14,10 @@
 //!   its customary domain, any other box a number derived from the box. A fitting objective
 //!   (`bouc-wen`, `rbf`) is a model fitted to recordings; its instance is derived from every
 //!   parameter (recordings, samples, model settings). Derived numbers are a stable hash
-//!   in 2..=65535, so the same configuration has the same instance in every suite (a clash
-//!   within a suite moves to the next free number). `instances.csv` names the objective
-//!   behind each instance.
+//!   in 2..=65535, so the same configuration has the same instance in every suite. Within
+//!   a suite every objective has an instance of its own: a second objective with the same
+//!   configuration (the same fit at another budget) or a hash clash takes the next free
+//!   number. `instances.csv` names the objective behind each instance.
 //! - **Values** (`raw_y`, and `best.y` in the meta file): f − f* where the optimum is known
 //!   (clipped at 0 as in the report), else the objective's value (a fit's cost).
 //! - **Runs**: one per trial, in suite order then trial order, the meta file's `runs` in the
@@ -38,7 +39,7 @@ use crate::harness::TrialRecord;
 use crate::objective::functions::TestFunction;
 use crate::pipeline::suite::Suite;
 use serde_json::json;
-use std::collections::BTreeMap;
+use std::collections::BTreeSet;
 use std::fmt::Write;
 use std::path::Path;
 
@@ -113,8 +114,8 @@ fn instance_of(key: Option<&str>) -> u16 {
 /// The suite's objectives with their function ids and instances, in suite order.
 pub fn objectives(suite: &Suite) -> Result<Vec<IohObjective<'_>>> {
     let mut out: Vec<IohObjective<'_>> = Vec::new();
-    // (fid, dim, instance) -> the key that took it, to move a clash to a free number.
-    let mut taken: BTreeMap<(u16, usize, u16), Option<String>> = BTreeMap::new();
+    // Every objective gets an instance of its own, so `instances.csv` maps one to one.
+    let mut taken: BTreeSet<(u16, usize, u16)> = BTreeSet::new();
     for o in &suite.objectives {
         let fid = function_id(o.kind)?;
         let dim = o.objective.dim();
@@ -128,17 +129,13 @@ pub fn objectives(suite: &Suite) -> Result<Vec<IohObjective<'_>>> {
             .collect();
         let key = instance_key(o.kind, &params, (b.lower()[0], b.upper()[0]));
         let mut instance = instance_of(key.as_deref());
-        while let Some(other) = taken.get(&(fid, dim, instance)) {
-            if *other == key {
-                break;
-            }
+        while !taken.insert((fid, dim, instance)) {
             instance = if instance == u16::MAX {
                 2
             } else {
                 instance + 1
             };
         }
-        taken.insert((fid, dim, instance), key);
         out.push(IohObjective {
             id: &o.id,
             kind: o.kind,
