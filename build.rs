@@ -1,4 +1,5 @@
-// Embeds the git commit of the build in the binary, for provenance of every result.
+// Embeds the git commit and the compiler of the build in the binary, for provenance of
+// every result.
 use std::path::Path;
 use std::process::Command;
 
@@ -20,6 +21,15 @@ fn main() {
         c => format!("commit {c}"),
     };
     println!("cargo:rustc-env=OPTBENCH_VERSION={version} ({built_from})");
+    // The compiler, for provenance.json (cargo names it in RUSTC).
+    let rustc = std::env::var("RUSTC").unwrap_or_else(|_| "rustc".into());
+    let rustc_version = Command::new(rustc)
+        .arg("--version")
+        .output()
+        .ok()
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+        .unwrap_or_default();
+    println!("cargo:rustc-env=OPTBENCH_RUSTC_VERSION={rustc_version}");
     // The git folder as git resolves it: in a worktree `.git` is a file, and a watched path
     // that does not exist makes cargo rerun this script, and rebuild the crate, every time.
     if let Some(dir) = git(&["rev-parse", "--git-dir"]) {

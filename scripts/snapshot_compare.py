@@ -17,7 +17,7 @@ import sys
 
 # Keys that record the run, not its results.
 # `crc` checksums a progress line, wall time included.
-RUN_KEYS = {"wall_s", "started", "finished", "build", "git_commit", "command", "out", "outputs", "suite_file", "fingerprint", "crc"}
+RUN_KEYS = {"wall_s", "started", "finished", "build", "git_commit", "git_dirty", "rustc", "cpu_model", "command", "out", "outputs", "suite_file", "fingerprint", "crc"}
 # Files that record who held the folder, not results.
 RUN_FILES = {".optbench.lock"}
 

@@ -356,8 +356,9 @@ fn run_writes_the_report_and_report_reproduces_it_byte_for_byte() {
         "/plots/convergence_griewank-2d.png",
         "/plots/box_schwefel-seed.png",
         "/plots/ecdf_schwefel-seed.svg",
-        "/ioh/MSGA/IOHprofiler_f2_schwefel-seed.info",
-        "/ioh/GA/data_f1_griewank-2d/IOHprofiler_f1_DIM2.dat",
+        "/ioh/MSGA/IOHprofiler_f3_schwefel.json",
+        "/ioh/GA/data_f2_griewank/IOHprofiler_f2_DIM2.dat",
+        "/ioh/instances.csv",
     ] {
         assert!(
             names.iter().any(|n| n == expected),

@@ -36,6 +36,11 @@ pub struct RunArgs {
     /// trials whose configuration is unchanged.
     #[arg(long)]
     pub force_resume: bool,
+    /// Run into --out even if it holds another suite's results or other files: optbench's
+    /// own files there (results, report, tables, plots, ioh) are removed first; other files
+    /// are left alone. Without it such a folder is refused.
+    #[arg(long, conflicts_with_all = ["resume", "force_resume"])]
+    pub overwrite: bool,
     /// Run only share K of N of the trials (round robin over the plan), e.g. 3/8; default
     /// --out results/NAME-shard-K-of-N. Combine the shards with `optbench merge`.
     #[arg(long, value_name = "K/N")]
@@ -57,6 +62,7 @@ pub fn run(args: RunArgs) -> Result<()> {
                     seed: args.seed,
                     budget: args.budget,
                     quiet: args.quiet,
+                    overwrite: args.overwrite,
                 },
             )?
         );
@@ -75,6 +81,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         quiet: args.quiet,
         resume: args.resume,
         force_resume: args.force_resume,
+        overwrite: args.overwrite,
         shard: args.shard,
         report: Some(crate::report::generate),
     };

@@ -153,6 +153,9 @@ pub struct RunRequest {
     pub quiet: bool,
     pub resume: bool,
     pub force_resume: bool,
+    /// Run even into a folder holding other results or other files: optbench's own files
+    /// there are removed first, the others left alone (see [`crate::pipeline::store::claim`]).
+    pub overwrite: bool,
     pub shard: Option<Shard>,
     /// Writes the report of a finished results folder and returns its main table (the
     /// command passes `report::generate`; the pipeline sits below the report).
@@ -169,6 +172,8 @@ pub struct Prepared {
     pub plan: Vec<PlannedTrial>,
     pub keys: Vec<String>,
     pub header: ProgressHeader,
+    /// See [`RunRequest::overwrite`].
+    pub overwrite: bool,
 }
 
 /// Loads and validates the suite, applies overrides and the shard; writes nothing.
@@ -216,6 +221,7 @@ pub fn prepare(req: &RunRequest) -> Result<Prepared> {
         plan,
         keys,
         header,
+        overwrite: req.overwrite,
     })
 }
 
@@ -245,15 +251,16 @@ fn differences(old: &ProgressHeader, new: &ProgressHeader) -> Vec<String> {
     d
 }
 
-/// Locks the results folder and opens the progress log for `p` (fresh, resumed or
-/// rewritten); returns it, holding the lock, with the records already finished, by key.
-/// Damaged log lines are reported on stderr and their trials left to run again.
+/// Locks the results folder, checks that it is this suite's to write (or clears it for
+/// `--overwrite`), and opens the progress log for `p` (fresh, resumed or rewritten);
+/// returns it, holding the lock, with the records already finished, by key. Damaged log
+/// lines are reported on stderr and their trials left to run again.
 pub fn open_log(
     p: &Prepared,
     resume: bool,
     force: bool,
 ) -> Result<(ProgressLog, HashMap<String, TrialRecord>)> {
-    let lock = crate::pipeline::store::lock_folder(&p.out)?;
+    let lock = crate::pipeline::store::lock_and_claim(&p.out, &p.suite.name, p.overwrite)?;
     let existing = read_progress(&p.out)?;
     if let Some(old) = &existing {
         for w in &old.skipped {

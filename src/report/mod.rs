@@ -7,9 +7,9 @@ pub mod ioh;
 pub mod paper;
 
 use crate::base::error::{Error, Result};
-use crate::base::{SafeName, atomic_write, create_dir_within};
+use crate::base::{SafeName, atomic_write};
 use crate::harness::TrialRecord;
-use crate::pipeline::store::{Provenance, read_traces};
+use crate::pipeline::store::{FreshFolder, Provenance, read_traces};
 use crate::pipeline::suite::Suite;
 use crate::render::{
     self,
@@ -150,8 +150,10 @@ pub fn generate(dir: &Path) -> Result<String> {
     let run = StoredRun::load(dir)?;
     let a = run.analyse();
 
-    let tables = dir.join("tables");
-    create_dir_within(dir, &tables)?;
+    // Generated folders are written afresh and swapped in: nothing of an earlier report
+    // (an objective no longer in the suite, an optimizer removed) survives.
+    let fresh_tables = FreshFolder::begin(dir, "tables")?;
+    let tables = fresh_tables.path().to_path_buf();
     let mut md = String::new();
     if !run.suite.tables.is_empty() {
         md += "## Tables with reference numbers\n\n";
@@ -189,26 +191,26 @@ pub fn generate(dir: &Path) -> Result<String> {
     json.push(b'\n');
     atomic_write(&dir.join("analysis.json"), &json)?;
 
-    create_dir_within(dir, &dir.join("plots"))?;
-    write_plots(&dir.join("plots"), &run, &a)?;
+    let fresh_plots = FreshFolder::begin(dir, "plots")?;
+    write_plots(fresh_plots.path(), &run, &a)?;
 
-    let objectives: Vec<ioh::IohObjective<'_>> = a
-        .objectives
+    let fresh_ioh = FreshFolder::begin(dir, "ioh")?;
+    let optimizers: Vec<(&SafeName, &str)> = run
+        .suite
+        .optimizers
         .iter()
-        .map(|o| ioh::IohObjective {
-            id: &o.id,
-            dim: o.dim,
-        })
+        .map(|o| (&o.id, o.kind))
         .collect();
-    let optimizers: Vec<&SafeName> = run.suite.optimizers.iter().map(|o| &o.id).collect();
-    create_dir_within(dir, &dir.join("ioh"))?;
     ioh::export(
-        &dir.join("ioh"),
+        fresh_ioh.path(),
         &run.suite.name,
-        &objectives,
+        &ioh::objectives(&run.suite)?,
         &optimizers,
         &run.records,
     )?;
+    for f in [fresh_tables, fresh_plots, fresh_ioh] {
+        f.commit()?;
+    }
     Ok(paper::summary_markdown(&a))
 }
 

@@ -292,6 +292,8 @@ pub struct RunOverrides {
     /// PSO evaluations of every internal-model fit.
     pub budget: Option<u64>,
     pub quiet: bool,
+    /// See `pipeline::run::RunRequest::overwrite`.
+    pub overwrite: bool,
 }
 
 /// `optbench run` on a control suite: load, apply the overrides, run and write; returns the
@@ -317,7 +319,9 @@ pub fn run_file(path: &Path, o: &RunOverrides) -> Result<String> {
             out.display()
         )));
     }
-    let _lock = crate::pipeline::store::lock_folder(&out)?;
+    let _lock = crate::pipeline::store::lock_and_claim(&out, &suite.name, o.overwrite)?;
+    // Every file is written anew (no resume): none of an earlier run may stay beside them.
+    crate::pipeline::store::output::clear_written(&out)?;
     let text = run_suite(&suite, o.threads, &out)?;
     Ok(if o.quiet {
         String::new()

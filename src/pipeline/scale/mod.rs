@@ -134,7 +134,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path, quiet: bool, report: Option<Report>) 
         .iter()
         .map(|k| found.remove(k).expect("checked"))
         .collect();
-    let _lock = crate::pipeline::store::lock_folder(out)?;
+    let _lock = crate::pipeline::store::lock_and_claim(out, &suite.name, false)?;
     let header = ProgressHeader {
         shard: None,
         planned: plan.len(),
@@ -158,6 +158,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path, quiet: bool, report: Option<Report>) 
         plan,
         keys,
         header,
+        overwrite: false,
     };
     let started = earliest.unwrap_or_else(std::time::SystemTime::now);
     let text = finish(&p, &records, threads, started, 0, quiet, report)?;

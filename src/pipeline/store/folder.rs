@@ -15,6 +15,16 @@ pub struct Provenance {
     pub version: String,
     /// `git describe`-style commit of the build, with `-dirty` for uncommitted changes.
     pub git_commit: Option<String>,
+    /// Whether the build had uncommitted changes (the commit alone does not name its code);
+    /// null where the commit is unknown or the file predates the field.
+    #[serde(default)]
+    pub git_dirty: Option<bool>,
+    /// `rustc --version` of the build (floating-point results may differ between compilers).
+    #[serde(default)]
+    pub rustc: Option<String>,
+    /// The processor, from `/proc/cpuinfo` where there is one (for wall times).
+    #[serde(default)]
+    pub cpu_model: Option<String>,
     pub suite_name: String,
     pub suite_file: String,
     pub seed: u64,
@@ -54,12 +64,20 @@ impl Provenance {
         started: std::time::SystemTime,
     ) -> Self {
         let finished = std::time::SystemTime::now();
+        let git_commit = option_env!("OPTBENCH_GIT_COMMIT")
+            .filter(|s| !s.is_empty())
+            .map(String::from);
         Provenance {
             tool: env!("CARGO_PKG_NAME").into(),
             version: env!("CARGO_PKG_VERSION").into(),
-            git_commit: option_env!("OPTBENCH_GIT_COMMIT")
+            git_dirty: git_commit.as_deref().map(|c| c.ends_with("-dirty")),
+            git_commit,
+            rustc: option_env!("OPTBENCH_RUSTC_VERSION")
                 .filter(|s| !s.is_empty())
                 .map(String::from),
+            cpu_model: std::fs::read_to_string("/proc/cpuinfo")
+                .ok()
+                .and_then(|t| cpu_model(&t)),
             suite_name: suite_name.to_string(),
             suite_file: suite_file.display().to_string(),
             seed,
@@ -76,6 +94,26 @@ impl Provenance {
             arch: std::env::consts::ARCH.into(),
         }
     }
+}
+
+/// The processor's name in a `/proc/cpuinfo` text: `model name` (x86), else the keys other
+/// architectures use.
+pub fn cpu_model(cpuinfo: &str) -> Option<String> {
+    [
+        "model name",
+        "cpu model",
+        "Model",
+        "Hardware",
+        "Processor",
+        "cpu",
+    ]
+    .iter()
+    .find_map(|key| {
+        cpuinfo.lines().find_map(|l| {
+            let (k, v) = l.split_once(':')?;
+            (k.trim() == *key && !v.trim().is_empty()).then(|| v.trim().to_string())
+        })
+    })
 }
 
 fn json<T: Serialize>(v: &T) -> Vec<u8> {
@@ -119,4 +157,57 @@ pub fn read_traces(dir: &Path) -> Result<Vec<TrialRecord>> {
                 .map_err(|e| Error::at(&path, i + 1, format!("not a trial record: {e}")))
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cpu_model_is_read_from_the_first_key_that_names_it() {
+        let x86 = "processor\t: 0\nvendor_id\t: GenuineIntel\nmodel\t\t: 85\nmodel name\t: Intel(R) Xeon(R) Gold 6148 CPU @ 2.40GHz\n\nprocessor\t: 1\nmodel name\t: Intel(R) Xeon(R) Gold 6148 CPU @ 2.40GHz\n";
+        assert_eq!(
+            cpu_model(x86).as_deref(),
+            Some("Intel(R) Xeon(R) Gold 6148 CPU @ 2.40GHz")
+        );
+        let arm = "processor\t: 0\nBogoMIPS\t: 108.00\nCPU part\t: 0xd0c\n\nModel\t\t: Raspberry Pi 4 Model B Rev 1.4\n";
+        assert_eq!(
+            cpu_model(arm).as_deref(),
+            Some("Raspberry Pi 4 Model B Rev 1.4")
+        );
+        assert_eq!(cpu_model("processor\t: 0\nmodel name\t:\n"), None);
+    }
+
+    #[test]
+    fn provenance_names_the_build_and_reads_files_from_before_the_new_fields() {
+        let p = Provenance::of_run(
+            "s",
+            Path::new("s.toml"),
+            1,
+            2,
+            3,
+            std::time::SystemTime::now(),
+        );
+        assert!(
+            p.rustc.as_deref().is_some_and(|r| r.starts_with("rustc ")),
+            "{:?}",
+            p.rustc
+        );
+        assert_eq!(
+            p.git_dirty,
+            p.git_commit.as_deref().map(|c| c.ends_with("-dirty"))
+        );
+        if std::path::Path::new("/proc/cpuinfo").exists() {
+            assert!(p.cpu_model.is_some());
+        }
+        let mut v = serde_json::to_value(&p).unwrap();
+        for k in ["git_dirty", "rustc", "cpu_model"] {
+            v.as_object_mut().unwrap().remove(k);
+        }
+        let old: Provenance = serde_json::from_value(v).unwrap();
+        assert_eq!(
+            (old.git_dirty, old.rustc, old.cpu_model),
+            (None, None, None)
+        );
+    }
 }

@@ -3,7 +3,8 @@
 //! taken without waiting; the OS drops it when the holder ends, however it ends (SIGKILL
 //! included), so a lock is never stale. The file names the holder (pid, start time,
 //! command) for the message of the one refused. Taking the lock also clears the
-//! temporaries that killed runs left ([`crate::base::remove_stale_temporaries`]).
+//! temporaries and staged folders that killed runs left
+//! ([`crate::base::remove_stale_temporaries`], [`super::output::remove_stale_staging`]).
 
 use crate::base::error::{Error, Result};
 use std::fs::File;
@@ -67,6 +68,7 @@ pub fn lock_folder(dir: &Path) -> Result<FolderLock> {
         let _ = f.write_all(holder.as_bytes());
     }
     crate::base::remove_stale_temporaries(dir);
+    super::output::remove_stale_staging(dir);
     Ok(FolderLock { _file: file })
 }
 

@@ -11,12 +11,17 @@
 //!   progress.jsonl    every finished trial, appended as it ends (resume, shards, merge)
 //!   .optbench.lock    held by the one `run`, `report` or `merge` writing the folder
 //! ```
+//!
+//! [`output`] knows which files are optbench's: a run refuses a folder holding anything
+//! else than results of the same suite, and never leaves another run's files beside its own.
 
 pub mod folder;
 pub mod lock;
+pub mod output;
 pub mod progress;
 pub mod summary;
 
 pub use folder::{Provenance, read_traces, write_run};
 pub use lock::{FolderLock, lock_folder};
-pub use summary::{CellSummary, Summary, summarize};
+pub use output::{FreshFolder, claim, lock_and_claim};
+pub use summary::{CellSummary, Summary, read_summary, summarize};

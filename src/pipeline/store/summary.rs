@@ -1,6 +1,9 @@
 //! `summary.json`: per objective x optimizer, the final best value of every trial and their
-//! statistics. Scripts read this file; its fields are a stable interface.
+//! statistics. Scripts read this file; its fields are a stable interface, and
+//! `format_version` says which: a reader refuses a version newer than it knows, and takes a
+//! file without one (written before the field) as version 1.
 
+use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
 use crate::stats::describe;
 use serde::{Deserialize, Serialize};
@@ -47,9 +50,20 @@ pub struct CellSummary {
     pub penalised: u64,
 }
 
+/// The version of `summary.json` this build writes and the newest it reads. Raise it when a
+/// field changes meaning or goes away (adding a field with a default does not).
+pub const SUMMARY_FORMAT_VERSION: u32 = 1;
+
+fn version_one() -> u32 {
+    1
+}
+
 /// The whole `summary.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
+    /// See [`SUMMARY_FORMAT_VERSION`]; absent in files from before the field: 1.
+    #[serde(default = "version_one")]
+    pub format_version: u32,
     pub suite: String,
     pub seed: u64,
     pub results: Vec<CellSummary>,
@@ -95,8 +109,57 @@ pub fn summarize(suite: &str, seed: u64, records: &[TrialRecord]) -> Summary {
         })
         .collect();
     Summary {
+        format_version: SUMMARY_FORMAT_VERSION,
         suite: suite.to_string(),
         seed,
         results,
+    }
+}
+
+/// Reads `summary.json` of a results folder, refusing a format newer than this build's.
+pub fn read_summary(dir: &std::path::Path) -> Result<Summary> {
+    let path = dir.join("summary.json");
+    let text = std::fs::read_to_string(&path)
+        .map_err(|e| Error::Input(format!("{}: cannot read: {e}", path.display())))?;
+    #[derive(Deserialize)]
+    struct Version {
+        #[serde(default = "version_one")]
+        format_version: u32,
+    }
+    let v: Version = serde_json::from_str(&text).map_err(|e| Error::at(&path, e.line(), e))?;
+    if v.format_version > SUMMARY_FORMAT_VERSION {
+        return Err(Error::Input(format!(
+            "{}: format_version {} is newer than this optbench reads ({SUMMARY_FORMAT_VERSION}); \
+             read it with a newer optbench, or rerun `optbench report`/`run` with this one",
+            path.display(),
+            v.format_version
+        )));
+    }
+    serde_json::from_str(&text).map_err(|e| Error::at(&path, e.line(), e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_version_is_written_absent_means_one_and_newer_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = summarize("s", 1, &[]);
+        let mut v = serde_json::to_value(&s).unwrap();
+        assert_eq!(v["format_version"], SUMMARY_FORMAT_VERSION);
+        let path = dir.path().join("summary.json");
+        std::fs::write(&path, v.to_string()).unwrap();
+        assert_eq!(read_summary(dir.path()).unwrap(), s);
+        v.as_object_mut().unwrap().remove("format_version");
+        std::fs::write(&path, v.to_string()).unwrap();
+        assert_eq!(read_summary(dir.path()).unwrap().format_version, 1);
+        v["format_version"] = (SUMMARY_FORMAT_VERSION + 1).into();
+        std::fs::write(&path, v.to_string()).unwrap();
+        let e = read_summary(dir.path()).unwrap_err().to_string();
+        assert!(
+            e.contains("format_version 2 is newer") && e.contains("summary.json"),
+            "{e}"
+        );
     }
 }
