@@ -356,8 +356,8 @@ fn run_writes_the_report_and_report_reproduces_it_byte_for_byte() {
         "/plots/convergence_griewank-2d.png",
         "/plots/box_schwefel-seed.png",
         "/plots/ecdf_schwefel-seed.svg",
-        "/ioh/MSGA/IOHprofiler_f3_schwefel.json",
-        "/ioh/GA/data_f2_griewank/IOHprofiler_f2_DIM2.dat",
+        "/ioh/MSGA/IOHprofiler_f27_schwefel.json",
+        "/ioh/GA/data_f26_griewank/IOHprofiler_f26_DIM2.dat",
         "/ioh/instances.csv",
     ] {
         assert!(

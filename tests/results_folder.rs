@@ -160,7 +160,7 @@ fn iohinspector_loads_every_run_with_the_summarys_finals() {
         "{stdout}"
     );
     // The check can fail: a final value changed in one .dat file is caught.
-    let dat = out.join("ioh/RS/data_f3_schwefel/IOHprofiler_f3_DIM2.dat");
+    let dat = out.join("ioh/RS/data_f27_schwefel/IOHprofiler_f27_DIM2.dat");
     let text = std::fs::read_to_string(&dat).unwrap();
     let first_run_end = text[1..].find("evaluations").unwrap();
     let last_line = text[..first_run_end]
@@ -196,20 +196,20 @@ fn the_export_has_fixed_ids_instances_and_errors_to_the_optimum() {
         .map(|l| l.split(',').collect())
         .collect();
     // Griewank in 2 and 5 dimensions: one function id; the narrow box another instance.
-    assert_eq!(&rows[0][..5], ["2", "griewank", "2", "1", "griewank-2d"]);
+    assert_eq!(&rows[0][..5], ["26", "griewank", "2", "1", "griewank-2d"]);
     // The same function at another budget: an instance of its own.
     assert_eq!(
         &rows[1][..5],
-        ["2", "griewank", "2", "2", "griewank-2d-long"]
+        ["26", "griewank", "2", "2", "griewank-2d-long"]
     );
-    assert_eq!(&rows[2][..5], ["2", "griewank", "5", "1", "griewank-5d"]);
-    assert_eq!(&rows[3][..4], ["3", "schwefel", "2", "1"]);
-    assert_eq!(&rows[4][..3], ["3", "schwefel", "2"]);
+    assert_eq!(&rows[2][..5], ["26", "griewank", "5", "1", "griewank-5d"]);
+    assert_eq!(&rows[3][..4], ["27", "schwefel", "2", "1"]);
+    assert_eq!(&rows[4][..3], ["27", "schwefel", "2"]);
     assert_ne!(rows[4][3], "1");
     assert_eq!(&rows[5][..2], ["101", "bouc-wen"]);
     // Schwefel's values are errors to its (negative) optimum: never negative, and the
     // meta file's best equals summary's final minus the optimum.
-    let meta = read_json(&ioh.join("RS/IOHprofiler_f3_schwefel.json"));
+    let meta = read_json(&ioh.join("RS/IOHprofiler_f27_schwefel.json"));
     let summary = read_json(&root.path().join("r/summary.json"));
     let cell = summary["results"]
         .as_array()
@@ -232,7 +232,7 @@ fn the_export_has_fixed_ids_instances_and_errors_to_the_optimum() {
         );
     }
     let dat =
-        std::fs::read_to_string(ioh.join("RS/data_f3_schwefel/IOHprofiler_f3_DIM2.dat")).unwrap();
+        std::fs::read_to_string(ioh.join("RS/data_f27_schwefel/IOHprofiler_f27_DIM2.dat")).unwrap();
     // The first three runs are schwefel-2d's (instance 1); the narrow box misses the
     // optimum, which is then unknown, and its values are raw (negative).
     let blocks: Vec<&str> = dat.split("evaluations raw_y\n").skip(1).collect();
@@ -352,7 +352,7 @@ fn a_suite_that_lost_an_objective_and_a_regenerated_report_leave_no_stale_file()
     let left = files(&out);
     for f in &left {
         assert!(
-            !f.contains("griewank-5d") && !f.contains("LBFGS") && !f.contains("f2_DIM5"),
+            !f.contains("griewank-5d") && !f.contains("LBFGS") && !f.contains("f26_DIM5"),
             "stale {f}"
         );
     }
@@ -364,7 +364,7 @@ fn a_suite_that_lost_an_objective_and_a_regenerated_report_leave_no_stale_file()
     // A report regenerated over planted files of an earlier report removes them.
     std::fs::write(out.join("plots/convergence_gone.svg"), "old").unwrap();
     std::fs::create_dir_all(out.join("ioh/Gone")).unwrap();
-    std::fs::write(out.join("ioh/Gone/IOHprofiler_f1_sphere.json"), "{}").unwrap();
+    std::fs::write(out.join("ioh/Gone/IOHprofiler_f25_sphere.json"), "{}").unwrap();
     std::fs::write(out.join("tables/gone.md"), "old").unwrap();
     ok(&optbench(&["report", "r"], dir));
     assert_eq!(files(&out), left);

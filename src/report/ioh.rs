@@ -47,14 +47,16 @@ use std::path::Path;
 pub const IOH_FORMAT: &str = "0.3.22";
 
 /// Function id of every objective kind, fixed forever: results of different suites and
-/// versions are compared by it. New kinds get new numbers; numbers are never reused.
+/// versions are compared by it. New kinds get new numbers; numbers are never reused. Ids 1 to
+/// 24 are left to COCO's BBOB functions (IOH numbers them so), so BBOB runs exported beside
+/// these never share an id with an untransformed test function.
 pub const FUNCTION_IDS: &[(&str, u16)] = &[
-    ("sphere", 1),
-    ("griewank", 2),
-    ("schwefel", 3),
-    ("rastrigin", 4),
-    ("rosenbrock", 5),
-    ("ackley", 6),
+    ("sphere", 25),
+    ("griewank", 26),
+    ("schwefel", 27),
+    ("rastrigin", 28),
+    ("rosenbrock", 29),
+    ("ackley", 30),
     ("bouc-wen", 101),
     ("rbf", 102),
 ];
@@ -331,7 +333,7 @@ mod tests {
             IohObjective {
                 id,
                 kind: "schwefel",
-                fid: 3,
+                fid: 27,
                 dim,
                 instance,
                 optimum,
@@ -357,16 +359,16 @@ mod tests {
         ];
         export(dir.path(), "tiny", &objectives, &[(&ga, "ga")], &recs).unwrap();
         let meta: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(dir.path().join("GA/IOHprofiler_f3_schwefel.json")).unwrap(),
+            &std::fs::read_to_string(dir.path().join("GA/IOHprofiler_f27_schwefel.json")).unwrap(),
         )
         .unwrap();
-        assert_eq!(meta["function_id"], 3);
+        assert_eq!(meta["function_id"], 27);
         assert_eq!(meta["suite"], "optbench");
         assert_eq!(meta["maximization"], false);
         let sc = meta["scenarios"].as_array().unwrap();
         assert_eq!(sc.len(), 2);
         assert_eq!(sc[0]["dimension"], 2);
-        assert_eq!(sc[0]["path"], "data_f3_schwefel/IOHprofiler_f3_DIM2.dat");
+        assert_eq!(sc[0]["path"], "data_f27_schwefel/IOHprofiler_f27_DIM2.dat");
         let runs = sc[0]["runs"].as_array().unwrap();
         // Trial order within an objective, objectives in suite order.
         let ids: Vec<(u64, u64)> = runs
@@ -387,7 +389,7 @@ mod tests {
         assert!(sc[1]["runs"][0]["best"]["y"].is_null());
         let dat = std::fs::read_to_string(
             dir.path()
-                .join("GA/data_f3_schwefel/IOHprofiler_f3_DIM2.dat"),
+                .join("GA/data_f27_schwefel/IOHprofiler_f27_DIM2.dat"),
         )
         .unwrap();
         let e1 = -700.0 + 837.9657745448674;
@@ -403,7 +405,7 @@ mod tests {
         );
         let csv = std::fs::read_to_string(dir.path().join("instances.csv")).unwrap();
         assert!(
-            csv.contains("\n3,schwefel,2,777,schwefel-wide,f (optimum unknown)\n"),
+            csv.contains("\n27,schwefel,2,777,schwefel-wide,f (optimum unknown)\n"),
             "{csv}"
         );
         assert!(
@@ -421,6 +423,7 @@ mod tests {
         ids.sort();
         ids.dedup();
         assert_eq!(ids.len(), FUNCTION_IDS.len());
+        assert!(ids.iter().all(|&id| id > 24), "1..=24 are BBOB's: {ids:?}");
         assert!(function_id("no-such-kind").is_err());
     }
 
