@@ -409,7 +409,7 @@ mod tests {
             "{csv}"
         );
         assert!(
-            csv.contains("\n3,schwefel,2,1,schwefel-2d,f - f* (f* = -8.379657745448674e2)\n"),
+            csv.contains("\n27,schwefel,2,1,schwefel-2d,f - f* (f* = -8.379657745448674e2)\n"),
             "{csv}"
         );
     }
