@@ -96,7 +96,7 @@ fn plot_columns<DB: DrawingBackend>(chart: &Chart<'_, DB>, s: Scale) -> usize {
 struct TimeSeries<'a> {
     title: &'a str,
     t: &'a [f64],
-    measured: &'a [f64],
+    measured: (&'a str, &'a [f64]),
     models: &'a [(String, Vec<f64>)],
     t_label: &'a str,
     y_label: &'a str,
@@ -111,7 +111,7 @@ impl Figure for TimeSeries<'_> {
         let errors: Vec<Vec<f64>> = self
             .models
             .iter()
-            .map(|(_, m)| m.iter().zip(self.measured).map(|(a, b)| a - b).collect())
+            .map(|(_, m)| m.iter().zip(self.measured.1).map(|(a, b)| a - b).collect())
             .collect();
         let all: Vec<f64> = series.iter().flat_map(|(_, v)| v.iter().copied()).collect();
         let all_e: Vec<f64> = errors.iter().flatten().copied().chain([0.0]).collect();
@@ -194,7 +194,7 @@ pub fn timeseries_with_error(
     path_stem: &Path,
     title: &str,
     t: &[f64],
-    measured: &[f64],
+    measured: (&str, &[f64]),
     models: &[(String, Vec<f64>)],
     t_label: &str,
     y_label: &str,
@@ -230,7 +230,7 @@ mod tests {
             &dir.path().join("ts"),
             title,
             &r.t,
-            &r.measured,
+            (MEASURED, &r.measured),
             &r.models,
             "time [s]",
             "displacement y [µm]",
