@@ -79,7 +79,11 @@ fn plotted_values_are_the_tables_values_and_axes_say_what_they_are() {
         {
             let median = cell["stats"]["median"].as_f64().unwrap();
             let last = *c.median.last().unwrap();
-            assert!(close(last, median), "{} {name}: plotted {last}, table {median}", p.id);
+            assert!(
+                close(last, median),
+                "{} {name}: plotted {last}, table {median}",
+                p.id
+            );
             let errors: Vec<f64> = cell["errors"]
                 .as_array()
                 .unwrap()
@@ -114,15 +118,24 @@ fn plotted_values_are_the_tables_values_and_axes_say_what_they_are() {
     let has = |file: &str, label: &str| svg_texts(&plots_dir.join(file)).iter().any(|t| t == label);
     assert!(has("convergence_bw.svg", "best-so-far train RMSE [mm]"));
     assert!(has("box_bw.svg", "final train RMSE [mm]"));
-    assert!(has("convergence_griewank-2d.svg", "best-so-far error to optimum f − f*"));
+    assert!(has(
+        "convergence_griewank-2d.svg",
+        "best-so-far error to optimum f − f*"
+    ));
     assert!(has("box_griewank-2d.svg", "final error to optimum f − f*"));
     for stem in ["ecdf_bw", "ecdf_griewank-2d"] {
         let file = format!("{stem}.svg");
         assert!(has(&file, "function evaluations"), "{file}");
-        assert!(has(&file, "fraction of (trial, target) pairs reached"), "{file}");
+        assert!(
+            has(&file, "fraction of (trial, target) pairs reached"),
+            "{file}"
+        );
     }
     let t = svg_texts(&plots_dir.join("ecdf_bw.svg"));
-    assert!(t.iter().any(|t| t.contains("targets on train RMSE [mm]")), "{t:?}");
+    assert!(
+        t.iter().any(|t| t.contains("targets on train RMSE [mm]")),
+        "{t:?}"
+    );
     for t in svg_texts(&plots_dir.join("convergence_griewank-2d.svg")) {
         assert!(!t.contains("RMSE"), "{t}");
     }
@@ -138,7 +151,12 @@ fn plotted_values_are_the_tables_values_and_axes_say_what_they_are() {
             assert_eq!(dims.unit, png::Unit::Meter, "{}", path.display());
             let dpi = f64::from(dims.xppu) * 0.0254;
             assert!((dpi - 300.0).abs() < 0.01, "{}: {dpi} dpi", path.display());
-            assert_eq!((info.width, info.height), (1920, 1440), "{}", path.display());
+            assert_eq!(
+                (info.width, info.height),
+                (1920, 1440),
+                "{}",
+                path.display()
+            );
         }
     }
 }

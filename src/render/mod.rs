@@ -57,7 +57,7 @@ pub use canvas::{HEIGHT, PNG_DPI, PNG_SCALE, PX_PER_INCH, WIDTH};
 pub use convergence::{ConvergenceSeries, convergence, convergence_series};
 pub use ecdf::{ecdf, runtimes};
 pub use lines::lines;
-pub use measured::MEASURED;
 pub use loops::loops;
+pub use measured::MEASURED;
 pub use style::{MIN_GREY_STEP, Marker, PALETTE, SeriesStyle, color, grey, series_style};
 pub use timeseries::timeseries_with_error;
