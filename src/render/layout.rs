@@ -251,7 +251,7 @@ pub(super) struct Pen {
     pub(super) markers: Option<f64>,
 }
 
-/// Distance between two markers along a line, logical pixels.
+/// Horizontal distance between two markers on a line, logical pixels.
 pub(super) const MARK_EVERY: f64 = 90.0;
 /// Marker radius, logical pixels.
 const MARK_R: f64 = 3.5;
@@ -309,7 +309,7 @@ impl Pen {
 }
 
 /// Draws `pts` (plot space) in `pen`: the line, then its markers every [`MARK_EVERY`]
-/// along it (if the pen has them); returns the series handle, for a legend entry.
+/// of x along it (if the pen has them); returns the series handle, for a legend entry.
 pub(super) fn draw_line<'a, 'b, DB: DrawingBackend + 'a>(
     chart: &'b mut Chart<'a, DB>,
     s: Scale,
@@ -325,10 +325,8 @@ where
                 let (x, y) = chart.backend_coord(&p);
                 (f64::from(x), f64::from(y))
             };
-            let len = |a, b| {
-                let (a, b) = (px(a), px(b));
-                ((b.0 - a.0).powi(2) + (b.1 - a.1).powi(2)).sqrt()
-            };
+            // Spaced along x, not along the path: a noisy line (a residual) is long.
+            let len = |a, b| (px(b).0 - px(a).0).abs();
             let lerp = |a: (f64, f64), b: (f64, f64), f: f64| {
                 (a.0 + f * (b.0 - a.0), a.1 + f * (b.1 - a.1))
             };
