@@ -34,7 +34,7 @@ pub fn write_run_figures(
             &dir.join(stem),
             &format!("{title}: {what}{failed}"),
             &t[range.clone()],
-            &run.output[range.clone()],
+            ("output", &run.output[range.clone()]),
             &[("reference".to_string(), run.reference[range].to_vec())],
             "time [s]",
             "displacement [mm]",
@@ -45,7 +45,7 @@ pub fn write_run_figures(
             &dir.join(stem),
             &format!("{title}: {what}{failed}"),
             &run.reference[range.clone()],
-            &run.output[range.clone()],
+            ("output", &run.output[range.clone()]),
             &[(
                 "ideal (y = reference)".to_string(),
                 run.reference[range].to_vec(),

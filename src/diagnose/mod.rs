@@ -351,6 +351,8 @@ pub struct Series {
     /// [`Diagnosis::records`]).
     pub dt: [f64; 2],
     pub final_label: String,
+    /// Unit of the input (the validation record's), for the figures' axes.
+    pub input_unit: String,
 }
 
 /// Training and validation data in the form the fits use.
@@ -2479,6 +2481,7 @@ pub fn diagnose_with_tests(
         final_model: [current.out_t.clone(), current.out_v.clone()],
         dt: [dt, dv],
         final_label: current_summary.model.clone(),
+        input_unit: validate.units[1].clone(),
     };
     let nuisances = {
         let f = &current.fitted;

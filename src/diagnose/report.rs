@@ -325,6 +325,11 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
         }
     };
     let fl = s.final_label.clone();
+    let input = if s.input_unit.is_empty() {
+        "input u".to_string()
+    } else {
+        format!("input u [{}]", s.input_unit)
+    };
     for (name, i) in [("train", 0), ("validate", 1)] {
         let parts = &d.records[i];
         // Several records: said in every title, with where each further one starts.
@@ -381,7 +386,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
                 ("final, u rising".into(), fr),
                 ("final, u falling".into(), ff),
             ],
-            "input u (20 equal-count bins)",
+            &format!("{input} (20 equal-count bins)"),
             &unit(2, "mean residual"),
             (false, false),
         )?;
@@ -433,12 +438,12 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
             &dir.join(format!("{name}_loops")),
             &format!("{set}: measured and model loops"),
             &s.u[i],
-            &s.y[i],
+            (render::MEASURED, &s.y[i]),
             &[
                 ("baseline (bouc-wen)".into(), s.baseline[i].clone()),
                 (format!("final ({fl})"), s.final_model[i].clone()),
             ],
-            "input u",
+            &input,
             &unit(2, "output"),
         )?;
     }

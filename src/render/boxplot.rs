@@ -1,9 +1,10 @@
 //! Box plots of final values, one Tukey box per group, names under the boxes.
 
 use super::axes::Axis;
-use super::canvas::{DrawResult, Figure, Scale, TICK_LEN, TICK_PX, color, render};
+use super::canvas::{DrawResult, Figure, Scale, TICK_LEN, TICK_PX, render};
 use super::font;
 use super::layout::{MARGIN_LEFT, TICK_LINE, clamp_note, frame, side_areas};
+use super::style::color;
 use crate::base::error::Result;
 use crate::stats::quantile_sorted;
 use plotters::coord::Shift;

@@ -1,5 +1,6 @@
 //! The canvas every figure draws on: its size, palette and text sizes, and the two files
-//! it becomes (an SVG, and a PNG drawn at 3x and averaged down), each written atomically.
+//! it becomes (an SVG sized in inches, and a 300 dpi PNG drawn at twice its size and averaged
+//! down), each written atomically.
 
 use super::font::FAMILY;
 use crate::base::atomic_write;
@@ -8,31 +9,20 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 
-/// Width of every figure in pixels (PNG) and logical pixels (SVG).
+/// Width of every figure in logical pixels (the SVG's view box; see [`PX_PER_INCH`]).
 pub const WIDTH: u32 = 640;
-/// Height of every figure in pixels (PNG) and logical pixels (SVG).
+/// Height of every figure in logical pixels.
 pub const HEIGHT: u32 = 480;
-/// The PNG is rendered this many times larger, then box-filtered down (anti-aliasing).
-const SUPERSAMPLE: u32 = 3;
-
-/// Okabe-Ito colours in the order series get them: black, orange, sky blue, bluish green,
-/// blue, vermillion, reddish purple, and yellow last (hard to see on white). Series 9 and
-/// later reuse the colours from the start.
-pub const PALETTE: [RGBColor; 8] = [
-    RGBColor(0x00, 0x00, 0x00),
-    RGBColor(0xE6, 0x9F, 0x00),
-    RGBColor(0x56, 0xB4, 0xE9),
-    RGBColor(0x00, 0x9E, 0x73),
-    RGBColor(0x00, 0x72, 0xB2),
-    RGBColor(0xD5, 0x5E, 0x00),
-    RGBColor(0xCC, 0x79, 0xA7),
-    RGBColor(0xF0, 0xE4, 0x42),
-];
-
-/// Colour of series `i`.
-pub fn color(i: usize) -> RGBColor {
-    PALETTE[i % PALETTE.len()]
-}
+/// Logical pixels per inch: a figure is 6.4 x 4.8 in, the width of a two-column paper's
+/// text (a figure* in IEEE or ACM), where the 14 px tick labels are 10 pt and the
+/// smallest text (footnotes, 11 px) 8 pt.
+pub const PX_PER_INCH: u32 = 100;
+/// Resolution of the PNG, stated in its pHYs chunk.
+pub const PNG_DPI: u32 = 300;
+/// PNG pixels per logical pixel: the PNG is 1920 x 1440.
+pub const PNG_SCALE: u32 = PNG_DPI / PX_PER_INCH;
+/// The PNG is drawn this many times larger still, then box-filtered down (anti-aliasing).
+const SUPERSAMPLE: u32 = 2;
 
 /// Axes, ticks and frames: dark grey, so pure black stays a series colour.
 pub(super) const INK: RGBColor = RGBColor(0x33, 0x33, 0x33);
@@ -60,7 +50,7 @@ pub(super) enum Canvas {
 
 impl Scale {
     pub(super) const SVG: Scale = Scale(1, Canvas::Vector);
-    const PNG: Scale = Scale(SUPERSAMPLE, Canvas::Bitmap);
+    const PNG: Scale = Scale(PNG_SCALE * SUPERSAMPLE, Canvas::Bitmap);
 
     pub(super) fn u(self, v: u32) -> u32 {
         v * self.0
@@ -119,9 +109,9 @@ pub(super) fn render(stem: &Path, fig: &impl Figure) -> Result<()> {
             .and_then(|()| Ok(root.present()?))
             .map_err(|e| draw_error(&svg_path, &*e))?;
     }
-    atomic_write(&svg_path, svg.as_bytes())?;
+    atomic_write(&svg_path, physical_size(&svg).as_bytes())?;
 
-    let (bw, bh) = (WIDTH * SUPERSAMPLE, HEIGHT * SUPERSAMPLE);
+    let (bw, bh) = (WIDTH * Scale::PNG.0, HEIGHT * Scale::PNG.0);
     let mut big = vec![255u8; (bw * bh * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut big, (bw, bh)).into_drawing_area();
@@ -129,7 +119,27 @@ pub(super) fn render(stem: &Path, fig: &impl Figure) -> Result<()> {
             .and_then(|()| Ok(root.present()?))
             .map_err(|e| draw_error(&png_path, &*e))?;
     }
-    write_png(&png_path, &downsample(&big, WIDTH, HEIGHT, SUPERSAMPLE))
+    let (w, h) = (WIDTH * PNG_SCALE, HEIGHT * PNG_SCALE);
+    write_png(&png_path, &downsample(&big, w, h, SUPERSAMPLE), (w, h))
+}
+
+/// The SVG with its printed size in inches (plotters writes it in pixels, which a viewer
+/// or LaTeX reads at 96 per inch): the same size as the PNG.
+fn physical_size(svg: &str) -> String {
+    let px = format!("<svg width=\"{WIDTH}\" height=\"{HEIGHT}\" ");
+    let inch = |v: u32| {
+        let s = format!("{:.2}", f64::from(v) / f64::from(PX_PER_INCH));
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    };
+    svg.replacen(
+        &px,
+        &format!(
+            "<svg width=\"{}in\" height=\"{}in\" ",
+            inch(WIDTH),
+            inch(HEIGHT)
+        ),
+        1,
+    )
 }
 
 /// Box filter: each output pixel is the mean of an `ss` x `ss` block.
@@ -155,14 +165,22 @@ fn downsample(big: &[u8], w: u32, h: u32, ss: u32) -> Vec<u8> {
     out
 }
 
-/// Encodes RGB pixels as PNG in memory (the encoder plotters' bitmap backend uses, with
-/// its defaults: the same bytes) and writes them atomically, so no temporary of a
-/// guessable name is opened.
-fn write_png(path: &Path, rgb: &[u8]) -> Result<()> {
-    use image::ImageEncoder;
+/// Encodes RGB pixels as PNG in memory, with a pHYs chunk saying [`PNG_DPI`] (so a word
+/// processor or LaTeX places it at its printed size), and writes it atomically, so no
+/// temporary of a guessable name is opened.
+fn write_png(path: &Path, rgb: &[u8], (w, h): (u32, u32)) -> Result<()> {
     let mut png = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut png)
-        .write_image(rgb, WIDTH, HEIGHT, image::ColorType::Rgb8)
+    let mut enc = png::Encoder::new(&mut png, w, h);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let per_metre = (f64::from(PNG_DPI) / 0.0254).round() as u32;
+    enc.set_pixel_dims(Some(png::PixelDimensions {
+        xppu: per_metre,
+        yppu: per_metre,
+        unit: png::Unit::Meter,
+    }));
+    enc.write_header()
+        .and_then(|mut wr| wr.write_image_data(rgb))
         .map_err(|e| draw_error(path, &e))?;
     atomic_write(path, &png)
 }

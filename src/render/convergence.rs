@@ -1,10 +1,11 @@
 //! Convergence curves: median and interquartile band of best-so-far over evaluations.
 
 use super::axes::Axis;
-use super::canvas::{DrawResult, Figure, LINE_W, Scale, color, render};
+use super::canvas::{DrawResult, Figure, Scale, render};
 use super::font;
-use super::layout::{TICK_LINE, clamp_note, frame, ink, stroke};
+use super::layout::{Pen, SWATCH, TICK_LINE, clamp_note, draw_line, frame, ink};
 use super::legend::{Corner, legend};
+use super::style::color;
 use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
 use crate::stats::quantile_sorted;
@@ -161,15 +162,16 @@ impl Figure for Convergence<'_> {
             lines.push(line);
         }
         // Lines after all bands, so no band covers another series' line.
-        let (sw, sh, lw) = (s.i(22), s.i(5), s.u(LINE_W));
+        let (sw, sh, n) = (s.i(SWATCH), s.i(5), self.series.len());
         for (i, (c, line)) in self.series.iter().zip(lines).enumerate() {
-            let col = color(i);
-            stroke(&mut chart, s, line, col.stroke_width(lw))?
+            let pen = Pen::marked(i, n);
+            let col = pen.style.color;
+            draw_line(&mut chart, s, line, &pen)?
                 .label(c.label.as_str())
-                .legend(move |p| {
-                    EmptyElement::at(p)
+                .legend(move |(x, y)| {
+                    EmptyElement::at((x, y))
                         + Rectangle::new([(0, -sh), (sw, sh)], col.mix(0.2).filled())
-                        + PathElement::new(vec![(0, 0), (sw, 0)], col.stroke_width(lw))
+                        + pen.swatch(s, (0, 0))
                 });
         }
         let labels: Vec<&str> = self.series.iter().map(|c| c.label.as_str()).collect();
@@ -185,9 +187,10 @@ impl Figure for Convergence<'_> {
     }
 }
 
-/// Convergence figure: per series, the median as a line and the interquartile range as a
-/// translucent band of the same colour, against function evaluations on a log axis; `y`
-/// on a log axis when `log_y`.
+/// Convergence figure: per series, the median as a line (series `i` in the colour, dash
+/// pattern and marker of [`series_style`](super::series_style)`(i)`) and the interquartile
+/// range as a translucent band of the same colour, against function evaluations on a log
+/// axis; `y` on a log axis when `log_y`. `y_label` says what the values are, in their unit.
 ///
 /// Points where the median is +inf or NaN (fewer than half the trials have a finite value
 /// yet) are left out of the line; where q3 is +inf the band reaches the top of the plot;
@@ -283,9 +286,13 @@ mod tests {
         );
         for i in 0..series.len() {
             let c = hex(color(i));
-            // One median line and one legend swatch per series; one band and its swatch.
-            assert_eq!(count(&f.svg, "polyline", "stroke", &c), 2, "lines of {c}");
-            assert_eq!(count(&f.svg, "polygon", "fill", &c), 1, "band of {c}");
+            // The median line in the series' style; one band.
+            check_styled(&f.svg, i, true);
+            assert_eq!(
+                count(&f.svg, "polygon opacity=\"0.2\"", "fill", &c),
+                1,
+                "band of {c}"
+            );
         }
         // PSO reaches an error of exactly 0: drawn at the floor, and the figure says so.
         assert_eq!(texts(&f.svg, "y values ≤ 0 drawn at 10⁻⁷"), 1, "{}", f.svg);

@@ -1,9 +1,9 @@
 //! Runtime ECDFs (as in COCO): the fraction of (trial, target) pairs reached over time.
 
 use super::axes::Axis;
-use super::canvas::{DrawResult, Figure, LINE_W, Scale, color, render};
+use super::canvas::{DrawResult, Figure, Scale, render};
 use super::font;
-use super::layout::{TICK_LINE, clamp_note, frame, ink, line_series};
+use super::layout::{Pen, TICK_LINE, clamp_note, frame, ink, line_series};
 use super::legend::{Corner, legend};
 use crate::base::error::Result;
 use crate::harness::TrialRecord;
@@ -77,7 +77,8 @@ impl Figure for Ecdf<'_> {
             }
             steps.push((x.hi, hits.len() as f64 / n));
             ink(&chart, s, &steps, &mut drawn);
-            line_series(&mut chart, s, steps, (color(i), LINE_W), Some(label))?;
+            let pen = Pen::marked(i, self.series.len());
+            line_series(&mut chart, s, steps, pen, Some(label))?;
         }
         let labels: Vec<&str> = self.series.iter().map(|(l, _)| l.as_str()).collect();
         use Corner::*;
@@ -161,7 +162,7 @@ mod tests {
             &["GA", "PSO", "random search"],
         );
         for i in 0..series.len() {
-            assert_eq!(count(&f.svg, "polyline", "stroke", &hex(color(i))), 2);
+            check_styled(&f.svg, i, true);
         }
     }
 }

@@ -3,13 +3,15 @@
 
 use super::axes::{Axis, AxisCoord, fmt_num};
 use super::canvas::{
-    Canvas, DrawResult, INK, LABEL_PX, LINE_W, NOTE_PX, Scale, TICK_LEN, TICK_PX, TITLE_PX, color,
+    DrawResult, INK, LABEL_PX, LINE_W, NOTE_PX, Scale, TICK_LEN, TICK_PX, TITLE_PX,
 };
+use super::style::{DASHES, Line, MarkerAt, SeriesStyle, along, series_style};
 use plotters::chart::SeriesAnno;
 use plotters::coord::Shift;
 use plotters::coord::cartesian::Cartesian2d;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
+use plotters_backend::BackendCoord;
 
 pub(super) type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<AxisCoord, AxisCoord>>;
 
@@ -239,70 +241,118 @@ pub(super) fn ink<DB: DrawingBackend>(
     out.extend(px.last());
 }
 
-/// Draws the polyline `pts` (plot space) in `style`; returns its series handle, for a
-/// legend entry. The SVG gets one polyline. On a bitmap plotters fills a wide line's whole
-/// outline as one even-odd polygon with mitred corners: holes where the line overlaps
-/// itself (a retraced loop, a min/max envelope's zigzag) and spikes at sharp turns. So
-/// there each segment is its own quad, with round joins.
-pub(super) fn stroke<'a, 'b, DB: DrawingBackend + 'a>(
+/// How a series' line is drawn: its style, width (logical pixels) and, when markers are
+/// on, where along the line the first one sits (a fraction of [`MARK_EVERY`]; series
+/// get different phases so that their markers do not pile up where their lines meet).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Pen {
+    pub(super) style: SeriesStyle,
+    pub(super) width: u32,
+    pub(super) markers: Option<f64>,
+}
+
+/// Horizontal distance between two markers on a line, logical pixels.
+pub(super) const MARK_EVERY: f64 = 90.0;
+/// Marker radius, logical pixels.
+const MARK_R: f64 = 3.5;
+/// Length of a legend swatch's line, logical pixels.
+pub(super) const SWATCH: i32 = 28;
+
+impl Pen {
+    /// Series `i` of `n`, with markers.
+    pub(super) fn marked(i: usize, n: usize) -> Pen {
+        Pen {
+            style: series_style(i),
+            width: LINE_W,
+            markers: Some((i as f64 + 0.5) / n.max(1) as f64),
+        }
+    }
+
+    /// Output series `i` (0 the measured one), without markers: the measured line is drawn
+    /// first and wider, so it shows on both sides of a model that fits it.
+    pub(super) fn output(i: usize) -> Pen {
+        Pen {
+            style: series_style(i),
+            width: if i == 0 { LINE_W + 2 } else { LINE_W },
+            markers: None,
+        }
+    }
+
+    fn line<C>(&self, s: Scale, points: Vec<C>, marks: Vec<C>) -> Line<C> {
+        Line {
+            points,
+            color: self.style.color,
+            width: s.u(self.width),
+            dash: DASHES[self.style.dash]
+                .iter()
+                .map(|d| d * f64::from(s.0))
+                .collect(),
+            canvas: s.1,
+            marks: marks
+                .into_iter()
+                .map(|at| MarkerAt {
+                    at,
+                    marker: self.style.marker,
+                    color: self.style.color,
+                    radius: MARK_R * f64::from(s.0),
+                })
+                .collect(),
+        }
+    }
+
+    /// The legend swatch at `p`: a short line in this pen, with its marker in the middle.
+    pub(super) fn swatch(&self, s: Scale, (x, y): BackendCoord) -> Line<BackendCoord> {
+        let sw = s.i(SWATCH);
+        let mark = self.markers.map(|_| (x + sw / 2, y)).into_iter().collect();
+        self.line(s, vec![(x, y), (x + sw, y)], mark)
+    }
+}
+
+/// Draws `pts` (plot space) in `pen`: the line, then its markers every [`MARK_EVERY`]
+/// of x along it (if the pen has them); returns the series handle, for a legend entry.
+pub(super) fn draw_line<'a, 'b, DB: DrawingBackend + 'a>(
     chart: &'b mut Chart<'a, DB>,
     s: Scale,
     pts: Vec<(f64, f64)>,
-    style: ShapeStyle,
+    pen: &Pen,
 ) -> DrawResult<&'b mut SeriesAnno<'a, DB>>
 where
     DB::ErrorType: 'static,
 {
-    if s.1 == Canvas::Vector || style.stroke_width <= 1 {
-        return Ok(chart.draw_series(LineSeries::new(pts, style))?);
-    }
-    // Points on the same pixel as the one before add nothing.
-    let mut kept: Vec<(f64, f64)> = Vec::with_capacity(pts.len());
-    let mut last = None;
-    for p in pts {
-        let b = chart.backend_coord(&p);
-        if last != Some(b) {
-            kept.push(p);
-            last = Some(b);
+    let marks = match pen.markers {
+        Some(phase) => {
+            let px = |p: (f64, f64)| {
+                let (x, y) = chart.backend_coord(&p);
+                (f64::from(x), f64::from(y))
+            };
+            // Spaced along x, not along the path: a noisy line (a residual) is long.
+            let len = |a, b| (px(b).0 - px(a).0).abs();
+            let lerp = |a: (f64, f64), b: (f64, f64), f: f64| {
+                (a.0 + f * (b.0 - a.0), a.1 + f * (b.1 - a.1))
+            };
+            along(&pts, len, lerp, MARK_EVERY * f64::from(s.0), phase)
         }
-    }
-    let inner = kept
-        .get(1..kept.len().saturating_sub(1))
-        .unwrap_or_default();
-    let r = style.stroke_width / 2;
-    chart.draw_series(inner.iter().map(|&p| Circle::new(p, r, style.filled())))?;
-    Ok(chart.draw_series(
-        kept.windows(2)
-            .map(|w| PathElement::new(vec![w[0], w[1]], style)),
-    )?)
+        None => Vec::new(),
+    };
+    Ok(chart.draw_series(std::iter::once(pen.line(s, pts, marks)))?)
 }
 
-/// Draws `pts` (plot space) as a line in `col`, `width` logical pixels wide; with a label,
-/// also its legend entry (a short line of the same colour and width).
+/// Draws `pts` (plot space) in `pen`; with a label, also its legend entry.
 pub(super) fn line_series<'a, DB: DrawingBackend + 'a>(
     chart: &mut Chart<'a, DB>,
     s: Scale,
     pts: Vec<(f64, f64)>,
-    (col, width): (RGBColor, u32),
+    pen: Pen,
     label: Option<&str>,
 ) -> DrawResult
 where
     DB::ErrorType: 'static,
 {
-    let (lw, sw) = (s.u(width), s.i(22));
-    let anno = stroke(chart, s, pts, col.stroke_width(lw))?;
+    let anno = draw_line(chart, s, pts, &pen)?;
     if let Some(l) = label {
-        anno.label(l).legend(move |p| {
-            EmptyElement::at(p) + PathElement::new(vec![(0, 0), (sw, 0)], col.stroke_width(lw))
-        });
+        anno.label(l).legend(move |p| pen.swatch(s, p));
     }
     Ok(())
-}
-
-/// Colour and width of output series `i` (0 the measured one): the measured line is
-/// drawn first and wider, so it shows on both sides of a model that fits it.
-pub(super) fn series_pen(i: usize) -> (RGBColor, u32) {
-    (color(i), if i == 0 { LINE_W + 2 } else { LINE_W })
 }
 
 /// Where `lines` pass, for legend placement.

@@ -2,7 +2,7 @@
 
 use super::axes::Axis;
 use super::canvas::{DrawResult, INK, LEGEND_PX, Scale};
-use super::layout::Chart;
+use super::layout::{Chart, SWATCH};
 use plotters::element::MultiLineText;
 use plotters::prelude::*;
 
@@ -30,7 +30,7 @@ fn legend_box(s: Scale, labels: &[&str]) -> DrawResult<LegendBox> {
         text.push_line(*l);
     }
     let (tw, th) = text.estimate_dimension()?;
-    let (margin, swatch_area) = (s.i(7), s.i(30));
+    let (margin, swatch_area) = (s.i(7), s.i(SWATCH + 10));
     Ok(LegendBox {
         w: tw + swatch_area + 2 * margin,
         h: th + 2 * margin,

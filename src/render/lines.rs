@@ -3,7 +3,7 @@
 use super::axes::Axis;
 use super::canvas::{DrawResult, Figure, Scale, render};
 use super::font;
-use super::layout::{TICK_LINE, clamp_note, frame, ink_all, line_series, series_pen};
+use super::layout::{Pen, TICK_LINE, clamp_note, frame, ink_all, line_series};
 use super::legend::{Corner, legend};
 use super::loops::{MAX_LOOP_POINTS, stride};
 use crate::base::error::Result;
@@ -59,7 +59,8 @@ impl Figure for Lines<'_> {
         let drawn = ink_all(&chart, s, &lines);
         let labels: Vec<&str> = self.series.iter().map(|(l, _)| l.as_str()).collect();
         for (i, (line, label)) in lines.into_iter().zip(&labels).enumerate() {
-            line_series(&mut chart, s, line, series_pen(i), Some(label))?;
+            let pen = Pen::marked(i, labels.len());
+            line_series(&mut chart, s, line, pen, Some(label))?;
         }
         use Corner::*;
         legend(
@@ -73,7 +74,8 @@ impl Figure for Lines<'_> {
     }
 }
 
-/// Labelled (x, y) lines, series `i` in colour `i` (series 0 drawn wider), with a legend;
+/// Labelled (x, y) lines, series `i` in the colour, dash pattern and marker of
+/// [`series_style`](super::series_style)`(i)`, with a legend;
 /// either axis logarithmic. More than 5000 points per line are thinned by a stride (see
 /// [`loops`](fn@super::loops)); non-finite points are skipped. For residuals over time, binned means and
 /// spectra.

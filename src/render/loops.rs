@@ -4,7 +4,7 @@ use super::axes::Axis;
 use super::canvas::{DrawResult, Figure, Scale, render};
 use super::font;
 use super::layout::{
-    TICK_LINE, above_footnote, build, footnote, ink_all, line_series, mesh, series_pen, side_areas,
+    Pen, TICK_LINE, above_footnote, build, footnote, ink_all, line_series, mesh, side_areas,
     titled, x_label_area,
 };
 use super::legend::{Corner, legend, legend_headroom};
@@ -36,7 +36,7 @@ pub(super) fn stride(x: &[f64], y: &[f64], cap: usize) -> (Vec<(f64, f64)>, usiz
 struct Loops<'a> {
     title: &'a str,
     u: &'a [f64],
-    measured: &'a [f64],
+    measured: (&'a str, &'a [f64]),
     models: &'a [(String, Vec<f64>)],
     u_label: &'a str,
     y_label: &'a str,
@@ -83,7 +83,7 @@ impl Figure for Loops<'_> {
         let drawn = ink_all(&chart, s, &lines);
         mesh(&mut chart, s, (&x, Some(self.u_label)), (&y, self.y_label))?;
         for (i, (line, label)) in lines.into_iter().zip(&labels).enumerate() {
-            line_series(&mut chart, s, line, series_pen(i), Some(label))?;
+            line_series(&mut chart, s, line, Pen::output(i), Some(label))?;
         }
         use Corner::*;
         legend(
@@ -98,8 +98,9 @@ impl Figure for Loops<'_> {
 }
 
 /// Hysteresis loops in the input-output plane (the dissertation's Fig. 3.6): the measured
-/// output against the input `u` as a black line and model `i`'s output against `u` in
-/// colour `i + 1` ([`color`](super::color)), with a legend.
+/// output against the input `u` as a wide black line and model `i`'s output against `u` in
+/// the colour and dash pattern of series `i + 1` ([`series_style`](super::series_style)),
+/// with a legend: a model that fits lets the measured line show between its dashes.
 ///
 /// Long records are thinned to every k-th sample, k the smallest that leaves at most 5000
 /// points per line (noted in a footnote when k > 1); the axes fit what is drawn. Not a
@@ -113,7 +114,7 @@ pub fn loops(
     path_stem: &Path,
     title: &str,
     u: &[f64],
-    measured: &[f64],
+    measured: (&str, &[f64]),
     models: &[(String, Vec<f64>)],
     u_label: &str,
     y_label: &str,
@@ -149,7 +150,7 @@ mod tests {
             &dir.path().join("loops"),
             title,
             &r.u,
-            &r.measured,
+            (MEASURED, &r.measured),
             &r.models,
             "input voltage u [V]",
             "displacement y [µm]",
@@ -168,10 +169,16 @@ mod tests {
                 "displacement y [µm]",
             ],
         );
-        // One line and one legend swatch per output; nothing thinned, so no footnote.
+        // Every output in its style: the measured one solid, the models dashed; nothing
+        // thinned, so no footnote.
         for i in 0..=r.models.len() {
-            assert_eq!(polylines(&f.svg, color(i)).len(), 2, "lines of series {i}");
+            check_styled(&f.svg, i, false);
         }
+        assert_eq!(
+            polylines(&f.svg, color(0)).len(),
+            2,
+            "measured: line and swatch"
+        );
         assert!(!f.svg.contains("samples drawn"));
     }
 

@@ -3,16 +3,17 @@
 
 use crate::base::error::{Error, Result};
 
-/// Legend label of the measured output.
-pub(super) const MEASURED: &str = "measured";
+/// Legend label of a measured output.
+pub const MEASURED: &str = "measured";
 
-/// The measured output first, then the models: (label, values), series `i` in colour `i`
-/// (so the measured output is black).
+/// The measured output (or whatever the models are held against, e.g. a controlled
+/// plant's output) first, then the models: (label, values), series `i` in style `i` (so
+/// the first is black).
 pub(super) fn output_series<'a>(
-    measured: &'a [f64],
+    (label, measured): (&'a str, &'a [f64]),
     models: &'a [(String, Vec<f64>)],
 ) -> Vec<(&'a str, &'a [f64])> {
-    std::iter::once((MEASURED, measured))
+    std::iter::once((label, measured))
         .chain(models.iter().map(|(l, v)| (l.as_str(), v.as_slice())))
         .collect()
 }
@@ -21,7 +22,7 @@ pub(super) fn output_series<'a>(
 pub(super) fn check_lengths(
     what: &str,
     n: usize,
-    measured: &[f64],
+    measured: (&str, &[f64]),
     models: &[(String, Vec<f64>)],
 ) -> Result<()> {
     for (label, v) in output_series(measured, models) {

@@ -5,16 +5,20 @@
 //!
 //! Data in, files out: the caller passes the series (built with [`convergence_series`] and
 //! [`runtimes`] from trial records, or from anything else) and a path stem; every figure is
-//! written as `<stem>.svg` and `<stem>.png`, both 640 x 480 (the SVG in the same logical
-//! pixels), each atomically (temporary file in the same folder, then a rename). The folder
-//! must exist.
+//! written as `<stem>.svg` and `<stem>.png`, each atomically (temporary file in the same
+//! folder, then a rename). The folder must exist. Both are 6.4 x 4.8 in, a figure the width
+//! of a two-column paper's text with 10 pt tick labels: the SVG says so in inches (640 x 480
+//! logical pixels in its view box), the PNG is 1920 x 1440 at 300 dpi (its pHYs chunk says
+//! so), drawn at twice that and averaged down, so lines and text are anti-aliased. No PDF:
+//! plotters has no PDF backend; the SVG converts losslessly (`rsvg-convert -f pdf`,
+//! Inkscape).
 //!
 //! Every figure has a title, axis labels, a legend (for box plots the optimizer names under
-//! the boxes) and the Okabe-Ito colour-blind-safe palette ([`PALETTE`]), series `i` in
-//! colour `i`, so one optimizer keeps its colour across figures when the caller keeps the
-//! order. Text is DejaVu Sans compiled into the binary (the `font` module): no system font,
-//! fontconfig or freetype is needed. The PNG is drawn at 3x and averaged down, so lines and
-//! text are anti-aliased.
+//! the boxes). Series `i` gets colour, dash pattern and marker `i` ([`series_style`]:
+//! Okabe-Ito without its yellow, then Paul Tol's muted colours), so series stay apart in
+//! greyscale print and for colour-blind readers, and one optimizer keeps its style across
+//! figures when the caller keeps the order. Text is DejaVu Sans compiled into the binary
+//! (the `font` module): no system font, fontconfig or freetype is needed.
 //!
 //! # Values a logarithmic axis cannot show
 //!
@@ -39,6 +43,7 @@ mod legend;
 mod lines;
 mod loops;
 mod measured;
+mod style;
 mod timeseries;
 
 #[cfg(test)]
@@ -48,9 +53,11 @@ mod tests;
 
 pub use axes::LOG_FLOOR_NO_POSITIVE;
 pub use boxplot::boxplot;
-pub use canvas::{HEIGHT, PALETTE, WIDTH, color};
+pub use canvas::{HEIGHT, PNG_DPI, PNG_SCALE, PX_PER_INCH, WIDTH};
 pub use convergence::{ConvergenceSeries, convergence, convergence_series};
 pub use ecdf::{ecdf, runtimes};
 pub use lines::lines;
 pub use loops::loops;
+pub use measured::MEASURED;
+pub use style::{MIN_GREY_STEP, Marker, PALETTE, SeriesStyle, color, grey, series_style};
 pub use timeseries::timeseries_with_error;

@@ -2,7 +2,8 @@
 //! the SVG and PNG a figure wrote.
 
 use super::ConvergenceSeries;
-use super::canvas::{HEIGHT, WIDTH};
+use super::canvas::{HEIGHT, PNG_DPI, PNG_SCALE, WIDTH};
+use super::style::{DASHES, series_style};
 use crate::harness::TrialRecord;
 use plotters::prelude::*;
 use std::path::Path;
@@ -63,9 +64,13 @@ pub(super) fn check_common(f: &Files, title: &str, labels: &[&str]) {
     let svg = f.svg.trim();
     assert!(svg.starts_with("<svg"), "{}", &svg[..50]);
     assert!(svg.ends_with("</svg>"));
+    // Printed size in inches, the view box in logical pixels.
     assert!(
-        svg.contains(&format!("width=\"{WIDTH}\""))
-            && svg.contains(&format!("height=\"{HEIGHT}\""))
+        svg.starts_with(&format!(
+            "<svg width=\"6.4in\" height=\"4.8in\" viewBox=\"0 0 {WIDTH} {HEIGHT}\""
+        )),
+        "{}",
+        &svg[..80]
     );
     assert_eq!(texts(svg, title), 1, "title");
     for l in labels {
@@ -76,21 +81,30 @@ pub(super) fn check_common(f: &Files, title: &str, labels: &[&str]) {
     assert_eq!(&f.png[12..16], b"IHDR");
     let w = u32::from_be_bytes(f.png[16..20].try_into().unwrap());
     let h = u32::from_be_bytes(f.png[20..24].try_into().unwrap());
-    assert_eq!((w, h), (WIDTH, HEIGHT));
+    let (w_px, h_px) = (WIDTH * PNG_SCALE, HEIGHT * PNG_SCALE);
+    assert_eq!((w, h), (w_px, h_px));
     // The title (text rendered with the bundled font) darkens the top strip.
     let decoder = png::Decoder::new(std::io::Cursor::new(&f.png));
     let mut reader = decoder.read_info().unwrap();
+    // 300 dpi in the pHYs chunk: 11811 pixels per metre.
+    let dims = reader.info().pixel_dims.expect("a pHYs chunk");
+    assert_eq!(dims.unit, png::Unit::Meter);
+    assert_eq!((dims.xppu, dims.yppu), (11811, 11811));
+    assert_eq!((f64::from(dims.xppu) * 0.0254).round() as u32, PNG_DPI);
     let mut buf = vec![0; reader.output_buffer_size()];
     let info = reader.next_frame(&mut buf).unwrap();
     let ch = info.color_type.samples();
-    let dark = (0..30)
-        .flat_map(|y| (WIDTH / 4..3 * WIDTH / 4).map(move |x| (x, y)))
+    let dark = (0..30 * PNG_SCALE)
+        .flat_map(|y| (w_px / 4..3 * w_px / 4).map(move |x| (x, y)))
         .filter(|&(x, y)| {
-            let i = (y * WIDTH + x) as usize * ch;
+            let i = (y * w_px + x) as usize * ch;
             buf[i..i + 3].iter().all(|&v| v < 100)
         })
         .count();
-    assert!(dark > 50, "only {dark} dark pixels in the title strip");
+    assert!(
+        dark > 50 * (PNG_SCALE * PNG_SCALE) as usize,
+        "only {dark} dark pixels in the title strip"
+    );
 }
 
 pub(super) fn only_outputs(dir: &Path, stem: &str) {
@@ -188,5 +202,37 @@ pub(super) fn piezo(n: usize, noise: f64) -> Record {
         t,
         u,
         measured,
+    }
+}
+
+/// Length of a polyline.
+fn length(line: &[(f64, f64)]) -> f64 {
+    line.windows(2)
+        .map(|w| ((w[1].0 - w[0].0).powi(2) + (w[1].1 - w[0].1).powi(2)).sqrt())
+        .sum()
+}
+
+/// Checks that series `i` of `n` is drawn in its style ([`series_style`]): lines in its
+/// colour, dashed (every polyline no longer than the pattern's longest dash, give or take
+/// the rounding to whole pixels) or solid (one line longer than that); with `markers`, at
+/// least one marker on the line besides the legend's (a filled polygon or circle).
+pub(super) fn check_styled(svg: &str, i: usize, markers: bool) {
+    let st = series_style(i);
+    let lines = polylines(svg, st.color);
+    assert!(!lines.is_empty(), "series {i}: no line");
+    let longest = lines.iter().map(|l| length(l)).fold(0.0, f64::max);
+    let dash = DASHES[st.dash];
+    let on = dash.iter().step_by(2).copied().fold(0.0, f64::max);
+    if dash.is_empty() {
+        assert!(longest > 20.0, "series {i}: solid, longest line {longest}");
+    } else {
+        assert!(lines.len() > 2, "series {i}: {} dashes", lines.len());
+        assert!(longest <= on + 2.0, "series {i}: a dash of {longest} px");
+    }
+    if markers {
+        let c = hex(st.color);
+        let marks =
+            count(svg, "polygon opacity=\"1\"", "fill", &c) + count(svg, "circle", "fill", &c);
+        assert!(marks >= 2, "series {i}: {marks} markers");
     }
 }

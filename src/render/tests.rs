@@ -78,7 +78,7 @@ fn long_records_render() {
         &d.join("ts"),
         "150 000 samples",
         &r.t,
-        &r.measured,
+        (MEASURED, &r.measured),
         &r.models,
         "time [s]",
         "y [µm]",
@@ -88,7 +88,7 @@ fn long_records_render() {
         &d.join("loops"),
         "150 000 samples",
         &r.u,
-        &r.measured,
+        (MEASURED, &r.measured),
         &r.models,
         "u [V]",
         "y [µm]",
@@ -118,19 +118,19 @@ fn odd_records_still_give_figures_or_input_errors() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let nan = vec![("all NaN".to_string(), vec![f64::NAN; 3])];
-    timeseries_with_error(&d.join("t0"), "empty", &[], &[], &[], "t", "y").unwrap();
-    loops(&d.join("l0"), "empty", &[], &[], &[], "u", "y").unwrap();
+    timeseries_with_error(&d.join("t0"), "empty", &[], (MEASURED, &[]), &[], "t", "y").unwrap();
+    loops(&d.join("l0"), "empty", &[], (MEASURED, &[]), &[], "u", "y").unwrap();
     let (t, y) = ([0.0, 1.0, 2.0], [1.0, 1.0, 1.0]);
-    timeseries_with_error(&d.join("t1"), "flat", &t, &y, &nan, "t", "y").unwrap();
-    loops(&d.join("l1"), "flat", &t, &y, &nan, "u", "y").unwrap();
+    timeseries_with_error(&d.join("t1"), "flat", &t, (MEASURED, &y), &nan, "t", "y").unwrap();
+    loops(&d.join("l1"), "flat", &t, (MEASURED, &y), &nan, "u", "y").unwrap();
     assert_eq!(std::fs::read_dir(d).unwrap().count(), 8);
     let short = vec![("short".to_string(), vec![1.0])];
     assert!(matches!(
-        timeseries_with_error(&d.join("x"), "x", &t, &y, &short, "t", "y"),
+        timeseries_with_error(&d.join("x"), "x", &t, (MEASURED, &y), &short, "t", "y"),
         Err(Error::Input(_))
     ));
     assert!(matches!(
-        loops(&d.join("x"), "x", &t, &y[..2], &[], "u", "y"),
+        loops(&d.join("x"), "x", &t, (MEASURED, &y[..2]), &[], "u", "y"),
         Err(Error::Input(_))
     ));
 }
@@ -247,7 +247,7 @@ fn demo_figures() {
         &dir.join("timeseries"),
         "Piezo actuator, 1 Hz sine: output and model error",
         &r.t,
-        &r.measured,
+        (MEASURED, &r.measured),
         &r.models,
         "time [s]",
         "displacement y [µm]",
@@ -257,7 +257,7 @@ fn demo_figures() {
         &dir.join("loops"),
         "Piezo actuator, 1 Hz sine: hysteresis loops",
         &r.u,
-        &r.measured,
+        (MEASURED, &r.measured),
         &r.models,
         "input voltage u [V]",
         "displacement y [µm]",
@@ -274,7 +274,7 @@ fn demo_figures() {
         &dir.join("timeseries_long"),
         "150 000 samples, two spikes, a gap",
         &r.t,
-        &r.measured,
+        (MEASURED, &r.measured),
         &r.models[..1],
         "time [s]",
         "displacement y [µm]",
@@ -296,7 +296,7 @@ fn demo_figures() {
         &dir.join("timeseries_many"),
         "Six models, 300 samples, a y label without a unit",
         &r.t,
-        &r.measured,
+        (MEASURED, &r.measured),
         &many,
         "t",
         "normalised output",
@@ -306,7 +306,7 @@ fn demo_figures() {
         &dir.join("loops_many"),
         "Six models",
         &r.u,
-        &r.measured,
+        (MEASURED, &r.measured),
         &many,
         "u",
         "normalised output",
@@ -316,7 +316,7 @@ fn demo_figures() {
         &dir.join("loops_long"),
         "150 000 samples",
         &r.u,
-        &r.measured,
+        (MEASURED, &r.measured),
         &r.models,
         "input voltage u [V]",
         "displacement y [µm]",

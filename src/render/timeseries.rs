@@ -1,11 +1,11 @@
 //! Measured and modelled output over time, with the models' errors in a panel under it.
 
 use super::axes::Axis;
-use super::canvas::{DrawResult, Figure, LINE_W, Scale, color, render};
+use super::canvas::{DrawResult, Figure, Scale, render};
 use super::font;
 use super::layout::{
-    Chart, TICK_LINE, above_footnote, build, footnote, ink_all, line_series, mesh, series_pen,
-    side_areas, titled, x_label_area,
+    Chart, Pen, TICK_LINE, above_footnote, build, footnote, ink_all, line_series, mesh, side_areas,
+    titled, x_label_area,
 };
 use super::legend::{Corner, legend, legend_headroom};
 use super::measured::{check_lengths, nonfinite_note, output_series};
@@ -96,7 +96,7 @@ fn plot_columns<DB: DrawingBackend>(chart: &Chart<'_, DB>, s: Scale) -> usize {
 struct TimeSeries<'a> {
     title: &'a str,
     t: &'a [f64],
-    measured: &'a [f64],
+    measured: (&'a str, &'a [f64]),
     models: &'a [(String, Vec<f64>)],
     t_label: &'a str,
     y_label: &'a str,
@@ -111,7 +111,7 @@ impl Figure for TimeSeries<'_> {
         let errors: Vec<Vec<f64>> = self
             .models
             .iter()
-            .map(|(_, m)| m.iter().zip(self.measured).map(|(a, b)| a - b).collect())
+            .map(|(_, m)| m.iter().zip(self.measured.1).map(|(a, b)| a - b).collect())
             .collect();
         let all: Vec<f64> = series.iter().flat_map(|(_, v)| v.iter().copied()).collect();
         let all_e: Vec<f64> = errors.iter().flatten().copied().chain([0.0]).collect();
@@ -151,7 +151,7 @@ impl Figure for TimeSeries<'_> {
         let drawn = ink_all(&upper, s, &lines);
         mesh(&mut upper, s, (&x, None), (&y, self.y_label))?;
         for (i, (line, label)) in lines.into_iter().zip(&labels).enumerate() {
-            line_series(&mut upper, s, line, series_pen(i), Some(label))?;
+            line_series(&mut upper, s, line, Pen::output(i), Some(label))?;
         }
         use Corner::*;
         legend(
@@ -172,7 +172,7 @@ impl Figure for TimeSeries<'_> {
         let columns = plot_columns(&lower, s);
         for (i, err) in errors.iter().enumerate() {
             let line = envelope(self.t, err, (x.lo, x.hi), columns);
-            line_series(&mut lower, s, line, (color(i + 1), LINE_W), None)?;
+            line_series(&mut lower, s, line, Pen::output(i + 1), None)?;
         }
         footnote(root, s, &note)
     }
@@ -180,8 +180,9 @@ impl Figure for TimeSeries<'_> {
 
 /// Measured and modelled output over time with the models' errors under it (the layout
 /// of the dissertation's Fig. 3.5): an upper panel, about 2/3 of the height, with the
-/// measured output in black and model `i` in colour `i + 1` ([`color`]) and a legend; a
-/// lower panel with each model's error e = model - measured in its colour, on the same x
+/// measured output as a wide black line and model `i` in the colour and dash pattern of
+/// series `i + 1` ([`series_style`](super::series_style)) and a legend; a
+/// lower panel with each model's error e = model - measured in its style, on the same x
 /// range, its y label "error" and the unit in brackets at the end of `y_label`, if any.
 /// Only the lower panel has x tick labels.
 ///
@@ -193,7 +194,7 @@ pub fn timeseries_with_error(
     path_stem: &Path,
     title: &str,
     t: &[f64],
-    measured: &[f64],
+    measured: (&str, &[f64]),
     models: &[(String, Vec<f64>)],
     t_label: &str,
     y_label: &str,
@@ -216,9 +217,9 @@ pub fn timeseries_with_error(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::PALETTE;
     use crate::render::measured::MEASURED;
     use crate::render::test_util::*;
+    use crate::render::{PALETTE, color};
 
     #[test]
     fn timeseries_with_error_writes_svg_and_png() {
@@ -229,7 +230,7 @@ mod tests {
             &dir.path().join("ts"),
             title,
             &r.t,
-            &r.measured,
+            (MEASURED, &r.measured),
             &r.models,
             "time [s]",
             "displacement y [µm]",
@@ -264,9 +265,9 @@ mod tests {
                 .count()
         };
         for i in 1..=r.models.len() {
-            assert_eq!(polylines(&f.svg, color(i)).len(), 3, "lines of model {i}");
+            check_styled(&f.svg, i, false);
         }
-        let error_series: usize = (0..PALETTE.len()).map(in_lower).sum();
+        let error_series = (0..PALETTE.len()).filter(|&i| in_lower(i) > 0).count();
         assert_eq!(error_series, r.models.len());
         assert_eq!(in_lower(0), 0);
     }

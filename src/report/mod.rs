@@ -227,12 +227,49 @@ fn ecdf_targets(errors_first: f64, best: f64) -> Vec<f64> {
         .collect()
 }
 
-fn write_plots(dir: &Path, run: &StoredRun, a: &Analysis) -> Result<()> {
-    std::fs::create_dir_all(dir)
-        .map_err(|e| Error::io(format!("creating {}", dir.display()), e))?;
+/// What the figures of one objective plot, before drawing: the same values the tables
+/// show (the traces as presented: a fitting cost as an RMSE in the recording's units; the
+/// error to the optimum where it is known; the value otherwise).
+pub struct ObjectivePlots {
+    pub id: String,
+    /// What the values are, with their unit: the presented label (`train RMSE [mm]`),
+    /// `error to optimum f − f*` or `value f`.
+    pub quantity: String,
+    /// Trials per optimizer (of the first).
+    pub trials: usize,
+    pub convergence: Vec<render::ConvergenceSeries>,
+    /// Whether the values fit a log axis.
+    pub log_y: bool,
+    /// Final values per optimizer (the table's errors, trial order).
+    pub finals: Vec<(String, Vec<f64>)>,
+    /// Targets of the runtime ECDF, in the units of `quantity`.
+    pub targets: Vec<f64>,
+    /// Per optimizer, the evaluations to reach each (trial, target) pair (+inf: never).
+    pub runtimes: Vec<(String, Vec<f64>)>,
+    pub budget: u64,
+}
+
+impl ObjectivePlots {
+    /// Y label of the convergence figure.
+    pub fn convergence_label(&self) -> String {
+        format!("best-so-far {}", self.quantity)
+    }
+
+    /// Y label of the box plot.
+    pub fn final_label(&self) -> String {
+        format!("final {}", self.quantity)
+    }
+}
+
+/// The figures' data of every objective, from the presented traces (see [`StoredRun`]).
+pub fn plot_data(run: &StoredRun, a: &Analysis) -> Vec<ObjectivePlots> {
+    let mut out = Vec::new();
     for o in &a.objectives {
-        let of_obj: Vec<&TrialRecord> =
-            run.records.iter().filter(|r| r.objective == o.id).collect();
+        let of_obj: Vec<&TrialRecord> = run
+            .presented
+            .iter()
+            .filter(|r| r.objective == o.id)
+            .collect();
         let by_opt = |opt: &str| -> Vec<&TrialRecord> {
             of_obj
                 .iter()
@@ -240,50 +277,11 @@ fn write_plots(dir: &Path, run: &StoredRun, a: &Analysis) -> Result<()> {
                 .filter(|r| r.optimizer == opt)
                 .collect()
         };
-        let what = match (&o.label, o.optimum) {
-            (Some(l), _) => format!("best-so-far {l}"),
-            (None, Some(_)) => "best-so-far error to optimum".into(),
-            (None, None) => "best-so-far value".into(),
+        let quantity = match (&o.label, o.optimum) {
+            (Some(l), _) => l.clone(),
+            (None, Some(_)) => "error to optimum f − f*".into(),
+            (None, None) => "value f".into(),
         };
-        let series: Vec<render::ConvergenceSeries> = o
-            .cells
-            .iter()
-            .map(|c| render::convergence_series(&c.optimizer, &by_opt(&c.optimizer)))
-            .collect();
-        let all_positive = o.cells.iter().all(|c| c.stats.min > 0.0) || o.optimum.is_some();
-        let n = o.cells.first().map(|c| c.stats.n).unwrap_or(0);
-        render::convergence(
-            &dir.join(format!("convergence_{}", o.id)),
-            &format!("{}: median and IQR over {n} trials", o.id),
-            &series,
-            &what,
-            all_positive,
-        )?;
-        let groups: Vec<(String, Vec<f64>)> = o
-            .cells
-            .iter()
-            .map(|c| (c.optimizer.clone(), c.errors.clone()))
-            .collect();
-        render::boxplot(
-            &dir.join(format!("box_{}", o.id)),
-            &format!(
-                "{}: final {} ({n} trials)",
-                o.id,
-                if o.optimum.is_some() {
-                    "error"
-                } else {
-                    "value"
-                }
-            ),
-            &groups,
-            if o.optimum.is_some() {
-                "final error to optimum"
-            } else {
-                "final value"
-            },
-            all_positive,
-        )?;
-        // Runtime ECDF over (trial x target) pairs.
         let targets = if o.targets.is_empty() {
             let first: Vec<f64> = of_obj
                 .iter()
@@ -303,7 +301,8 @@ fn write_plots(dir: &Path, run: &StoredRun, a: &Analysis) -> Result<()> {
         } else {
             o.targets.clone()
         };
-        let ecdf: Vec<(String, Vec<f64>)> = o
+        // Runtime ECDF over (trial x target) pairs.
+        let runtimes = o
             .cells
             .iter()
             .map(|c| {
@@ -321,18 +320,61 @@ fn write_plots(dir: &Path, run: &StoredRun, a: &Analysis) -> Result<()> {
                 (c.optimizer.clone(), v)
             })
             .collect();
+        out.push(ObjectivePlots {
+            id: o.id.to_string(),
+            quantity,
+            trials: o.cells.first().map(|c| c.stats.n).unwrap_or(0),
+            convergence: o
+                .cells
+                .iter()
+                .map(|c| render::convergence_series(&c.optimizer, &by_opt(&c.optimizer)))
+                .collect(),
+            log_y: o.cells.iter().all(|c| c.stats.min > 0.0) || o.optimum.is_some(),
+            finals: o
+                .cells
+                .iter()
+                .map(|c| (c.optimizer.clone(), c.errors.clone()))
+                .collect(),
+            targets,
+            runtimes,
+            budget: o.budget,
+        });
+    }
+    out
+}
+
+fn write_plots(dir: &Path, run: &StoredRun, a: &Analysis) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| Error::io(format!("creating {}", dir.display()), e))?;
+    for p in plot_data(run, a) {
+        let (id, n) = (&p.id, p.trials);
+        render::convergence(
+            &dir.join(format!("convergence_{id}")),
+            &format!("{id}: median and IQR over {n} trials"),
+            &p.convergence,
+            &p.convergence_label(),
+            p.log_y,
+        )?;
+        render::boxplot(
+            &dir.join(format!("box_{id}")),
+            &format!("{id}: {} ({n} trials)", p.final_label()),
+            &p.finals,
+            &p.final_label(),
+            p.log_y,
+        )?;
+        let (first, last) = (p.targets[0], p.targets[p.targets.len() - 1]);
         render::ecdf(
-            &dir.join(format!("ecdf_{}", o.id)),
+            &dir.join(format!("ecdf_{id}")),
             &format!(
-                "{}: runtime ECDF, {} targets {}..{}",
-                o.id,
-                targets.len(),
-                sig(targets[0], 2),
-                sig(*targets.last().unwrap(), 2)
+                "{id}: runtime ECDF, {} targets on {}, {}..{}",
+                p.targets.len(),
+                p.quantity,
+                sig(first, 2),
+                sig(last, 2)
             ),
-            &ecdf,
+            &p.runtimes,
             "function evaluations",
-            (1.0, o.budget as f64),
+            (1.0, p.budget as f64),
         )?;
     }
     Ok(())
