@@ -442,8 +442,12 @@ pub fn compare(a_dir: &Path, b_dir: &Path) -> Result<String> {
         &table,
         &[false, false, true, true, true, true, true, false],
     );
-    for m in missing {
-        s += &format!("{m}\n");
+    if !missing.is_empty() {
+        // A blank line first: a line right under a table would render as one more row.
+        s.push('\n');
+        for m in missing {
+            s += &format!("- {m}\n");
+        }
     }
     Ok(s)
 }

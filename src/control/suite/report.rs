@@ -150,5 +150,8 @@ mod tests {
             !md.contains("## Internal models"),
             "no IMC, no models section"
         );
+        // The paper tables (one per [[table]]) and every cell render as GFM tables.
+        let tables = crate::render::table::check_gfm_tables(&md);
+        assert_eq!(tables, Ok(suite.tables.len() + 2), "{md}");
     }
 }

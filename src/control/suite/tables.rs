@@ -7,7 +7,7 @@ use super::cell_index;
 use super::run::{ControlResults, RunRecord};
 use crate::base::TrialSeed;
 use crate::pipeline::suite::PaperTable;
-use crate::render::latex::{booktabs, latex_escape};
+use crate::render::latex::{booktabs, latex_escape, sentence};
 use crate::render::table::{markdown, sig};
 use crate::report::paper::layout_markdown;
 use crate::stats::{a12, bootstrap_median_ci, describe, mann_whitney, wilcoxon};
@@ -171,7 +171,7 @@ pub fn table_markdown(t: &PaperTable, suite: &ControlSuite, res: &ControlResults
 pub fn table_latex(t: &PaperTable, suite: &ControlSuite, res: &ControlResults) -> String {
     let caption = format!(
         "{} Ours: median over {} trials [95\\% CI]; the dissertation's single run in parentheses.",
-        latex_escape(&t.title),
+        latex_escape(&sentence(&t.title)),
         suite.trials
     );
     let mut body = String::new();
