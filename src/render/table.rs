@@ -9,14 +9,15 @@ pub fn sig(x: f64, sig: usize) -> String {
     if x == 0.0 {
         return "0".into();
     }
-    // The magnitude after rounding, so 0.9996 prints as 1.00, not 1.000.
+    // The magnitude after rounding, so 0.9996 prints as 1.00, not 1.000 (integers keep
+    // their digits: 6288, not 6290).
     let rounded: f64 = format!("{x:.prec$e}", prec = sig.max(1) - 1)
         .parse()
         .unwrap_or(x);
     let mag = rounded.abs().log10().floor() as i32;
     if (-3..6).contains(&mag) {
         let decimals = (sig as i32 - 1 - mag).max(0) as usize;
-        format!("{rounded:.decimals$}")
+        format!("{x:.decimals$}")
     } else {
         format!("{x:.prec$e}", prec = sig - 1)
     }

@@ -3,6 +3,7 @@
 //! IOHprofiler export) and `analysis.json`. The same folder always gives the same bytes.
 
 pub mod analysis;
+pub mod html;
 pub mod ioh;
 pub mod paper;
 
@@ -208,6 +209,20 @@ pub fn generate(dir: &Path) -> Result<String> {
         &objectives,
         &optimizers,
         &run.records,
+    )?;
+    // Last: the page embeds the figures just drawn.
+    let groups: Vec<String> = a.objectives.iter().map(|o| o.id.to_string()).collect();
+    html::write(
+        dir,
+        &html::Page {
+            title: &format!("optbench report: {} (seed {})", a.suite, a.seed),
+            markdown: &report,
+            statistics: &html::benchmark_statistics(),
+            figures: &dir.join("plots"),
+            figures_link: "plots/",
+            figure_groups: &groups,
+            provenance: &dir.join("provenance.json"),
+        },
     )?;
     Ok(paper::summary_markdown(&a))
 }

@@ -41,7 +41,7 @@ pub struct MetricStats {
 }
 
 /// Bootstrap resamples for the median intervals (as the report's).
-const RESAMPLES: usize = 2000;
+pub(super) const RESAMPLES: usize = 2000;
 
 fn metric_stats(values: &[f64], rng_key: TrialSeed) -> MetricStats {
     let d = describe(values);

@@ -1,0 +1,71 @@
+//! What a paper or a reader takes from a results folder, checked as they would: the
+//! Markdown through a GFM renderer, the LaTeX through pdflatex with its bold visible, and
+//! report.html as one self-contained page a browser renders. The Rust checks always run;
+//! those needing markdown-it-py, pdflatex/pdffonts or Chromium skip with a message when
+//! the tool is missing (see scripts/README.md).
+
+mod common;
+
+use common::{check_report_outputs, optbench, run_check_script, run_shipped_suite};
+
+const SUITE: &str = r#"name = "outputs"
+seed = 5
+trials = 4
+budget = 400
+targets = [1.0, 0.01]
+
+[[objective]]
+kind = "griewank"
+dim = 2
+
+[[objective]]
+kind = "sphere"
+id = "sphere-2d"
+dim = 2
+
+[[optimizer]]
+kind = "random"
+id = "RS"
+
+[[optimizer]]
+kind = "de"
+id = "DE"
+
+[[optimizer]]
+kind = "cmaes"
+id = "CMA-ES"
+"#;
+
+#[test]
+fn a_function_suite_and_its_comparison_render_everywhere() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("s.toml"), SUITE).unwrap();
+    for (seed, out) in [("5", "a"), ("6", "b")] {
+        let o = optbench(
+            &["run", "s.toml", "--seed", seed, "--out", out, "-q"],
+            dir.path(),
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    check_report_outputs(&dir.path().join("a"));
+    // The comparison is printed: its Markdown must render too.
+    let o = optbench(&["report", "a", "b"], dir.path());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let compare = dir.path().join("compare.md");
+    std::fs::write(&compare, &o.stdout).unwrap();
+    run_check_script("check_markdown.py", &[&compare]);
+}
+
+#[test]
+fn a_fitting_suite_renders_everywhere() {
+    let data = optbench::data::recording::data_dir();
+    if !data.join("boucwen-benchmark").exists() {
+        eprintln!(
+            "skipping: data not found at {} (set OPTBENCH_DATA)",
+            data.display()
+        );
+        return;
+    }
+    let dir = run_shipped_suite("boucwen-benchmark", "2", "60");
+    check_report_outputs(&dir.path().join("r"));
+}
