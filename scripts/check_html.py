@@ -23,6 +23,7 @@ DIR/NAME-top.png and DIR/NAME-figures.png to look at.
 Exit 0 when all passes, 1 on a failed check, 2 on bad arguments, 3 when Chromium is missing.
 """
 
+import argparse
 import html.parser
 import pathlib
 import re
@@ -220,19 +221,11 @@ def rendered_checks(chromium, page, figures, shots, name):
 
 
 def main(argv):
-    args, shots = [], None
-    it = iter(argv[1:])
-    for a in it:
-        if a == "--shots":
-            shots = pathlib.Path(next(it, "."))
-        elif a in ("-h", "--help"):
-            print(__doc__.strip())
-            return 0
-        else:
-            args.append(pathlib.Path(a))
-    if not args:
-        print(__doc__.strip(), file=sys.stderr)
-        return 2
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("folders", nargs="+", type=pathlib.Path, help="results folders")
+    ap.add_argument("--shots", type=pathlib.Path, help="keep the screenshots here")
+    a = ap.parse_args(argv[1:])
+    args, shots = a.folders, a.shots
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
     if shots:
         shots.mkdir(parents=True, exist_ok=True)

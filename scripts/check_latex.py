@@ -23,12 +23,15 @@ Each .tex file found (folders are searched recursively) is wrapped in a minimal 
 Prints one line per file; exit 1 on any failure, 0 otherwise.
 """
 
+import argparse
 import pathlib
 import re
 import shutil
 import subprocess
 import sys
 import tempfile
+
+from _outputs import files_in
 
 # OT1 (no fontenc): the bold check reads Computer Modern font names (T1 would give EC).
 PREAMBLE = r"""\documentclass{article}
@@ -120,19 +123,11 @@ def check(path, work, png_dir):
 
 
 def main(argv):
-    args, png_dir = [], None
-    it = iter(argv[1:])
-    for a in it:
-        if a == "--png":
-            png_dir = pathlib.Path(next(it, ""))
-        elif a in ("-h", "--help"):
-            print(__doc__.strip())
-            return 0
-        else:
-            args.append(a)
-    if not args:
-        print(__doc__.strip(), file=sys.stderr)
-        return 2
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("paths", nargs="+", help="results folders or .tex files")
+    ap.add_argument("--png", type=pathlib.Path, help="write each table as a PNG here")
+    args = ap.parse_args(argv[1:])
+    png_dir = args.png
     for tool, package in (("pdflatex", "texlive-latex-base texlive-latex-recommended"),
                           ("pdffonts", "poppler-utils")):
         if shutil.which(tool) is None:
@@ -141,19 +136,7 @@ def main(argv):
             return 3
     if png_dir is not None:
         png_dir.mkdir(parents=True, exist_ok=True)
-    files = []
-    for a in args:
-        p = pathlib.Path(a)
-        if p.is_dir():
-            files += sorted(p.rglob("*.tex"))
-        elif p.is_file():
-            files.append(p)
-        else:
-            print(f"check_latex: {p}: no such file or folder", file=sys.stderr)
-            return 2
-    if not files:
-        print(f"check_latex: no .tex file in {' '.join(args)}", file=sys.stderr)
-        return 2
+    files = files_in(args.paths, ".tex", "check_latex")
     problems = []
     with tempfile.TemporaryDirectory(prefix="check_latex-") as tmp:
         for f in files:

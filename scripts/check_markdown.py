@@ -18,8 +18,10 @@ Prints one line per file (tables found) and every problem with file and line; ex
 any problem, 0 otherwise.
 """
 
-import pathlib
+import argparse
 import sys
+
+from _outputs import files_in
 
 
 def cells(line):
@@ -89,9 +91,9 @@ def check_text(md, text, name):
 
 
 def main(argv):
-    if len(argv) < 2 or argv[1] in ("-h", "--help"):
-        print(__doc__.strip())
-        return 0 if len(argv) == 2 else 2
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("paths", nargs="+", help="results folders or .md files")
+    args = ap.parse_args(argv[1:])
     try:
         from markdown_it import MarkdownIt
     except ImportError:
@@ -99,19 +101,7 @@ def main(argv):
               "(pip install markdown-it-py); nothing checked", file=sys.stderr)
         return 3
     md = MarkdownIt("commonmark").enable(["table", "strikethrough"])
-    files = []
-    for arg in argv[1:]:
-        p = pathlib.Path(arg)
-        if p.is_dir():
-            files += sorted(p.rglob("*.md"))
-        elif p.is_file():
-            files.append(p)
-        else:
-            print(f"check_markdown: {p}: no such file or folder", file=sys.stderr)
-            return 2
-    if not files:
-        print(f"check_markdown: no .md file in {' '.join(argv[1:])}", file=sys.stderr)
-        return 2
+    files = files_in(args.paths, ".md", "check_markdown")
     problems, total = [], 0
     for f in files:
         found, p = check_text(md, f.read_text(encoding="utf-8"), str(f))

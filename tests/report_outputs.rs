@@ -8,48 +8,22 @@ mod common;
 
 use common::{check_report_outputs, optbench, run_check_script, run_shipped_suite};
 
-const SUITE: &str = r#"name = "outputs"
-seed = 5
-trials = 4
-budget = 400
-targets = [1.0, 0.01]
-
-[[objective]]
-kind = "griewank"
-dim = 2
-
-[[objective]]
-kind = "sphere"
-id = "sphere-2d"
-dim = 2
-
-[[optimizer]]
-kind = "random"
-id = "RS"
-
-[[optimizer]]
-kind = "de"
-id = "DE"
-
-[[optimizer]]
-kind = "cmaes"
-id = "CMA-ES"
-"#;
-
 #[test]
 fn a_function_suite_and_its_comparison_render_everywhere() {
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("s.toml"), SUITE).unwrap();
-    for (seed, out) in [("5", "a"), ("6", "b")] {
-        let o = optbench(
-            &["run", "s.toml", "--seed", seed, "--out", out, "-q"],
-            dir.path(),
-        );
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    }
-    check_report_outputs(&dir.path().join("a"));
+    // The shipped suite (every optimizer, ties at 0 on Schwefel) at a small size, and the
+    // same suite with another seed to compare with.
+    let dir = run_shipped_suite("functions", "2", "400");
+    let suite = format!("{}/suites/functions.toml", env!("CARGO_MANIFEST_DIR"));
+    let o = optbench(
+        &[
+            "run", &suite, "--trials", "2", "--budget", "400", "--seed", "7", "--out", "b", "-q",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    check_report_outputs(&dir.path().join("r"));
     // The comparison is printed: its Markdown must render too.
-    let o = optbench(&["report", "a", "b"], dir.path());
+    let o = optbench(&["report", "r", "b"], dir.path());
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let compare = dir.path().join("compare.md");
     std::fs::write(&compare, &o.stdout).unwrap();

@@ -8,6 +8,7 @@
 
 use crate::base::atomic_write;
 use crate::base::error::{Error, Result};
+use crate::render::table::gfm_cells;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -338,36 +339,13 @@ fn slug(text: &str) -> String {
 fn is_table_start(lines: &[&str], i: usize) -> bool {
     lines[i].trim_start().starts_with('|')
         && lines.get(i + 1).is_some_and(|l| {
-            let cells = table_cells(l);
+            let cells = gfm_cells(l);
             !cells.is_empty()
                 && cells.iter().all(|c| {
                     let d = c.trim_matches(':');
                     !d.is_empty() && d.chars().all(|x| x == '-')
                 })
         })
-}
-
-/// A table line's cells, split at unescaped `|` (the escape dropped), trimmed.
-fn table_cells(line: &str) -> Vec<String> {
-    let t = line.trim();
-    let t = t.strip_prefix('|').unwrap_or(t);
-    let t = match t.strip_suffix('|') {
-        Some(inner) if !inner.ends_with('\\') => inner,
-        _ => t,
-    };
-    let mut cells = vec![String::new()];
-    let mut chars = t.chars().peekable();
-    while let Some(c) = chars.next() {
-        match c {
-            '\\' if chars.peek() == Some(&'|') => {
-                cells.last_mut().expect("one cell").push('|');
-                chars.next();
-            }
-            '|' => cells.push(String::new()),
-            _ => cells.last_mut().expect("one cell").push(c),
-        }
-    }
-    cells.iter().map(|c| c.trim().to_string()).collect()
 }
 
 /// Block-level Markdown into `out`.
@@ -401,8 +379,8 @@ fn blocks(md: &str, links: &Links<'_>, out: &mut String) {
             out.push_str("</code></pre>\n");
             i += 1;
         } else if is_table_start(&lines, i) {
-            let head = table_cells(line);
-            let align: Vec<&str> = table_cells(lines[i + 1])
+            let head = gfm_cells(line);
+            let align: Vec<&str> = gfm_cells(lines[i + 1])
                 .iter()
                 .map(|c| match (c.starts_with(':'), c.ends_with(':')) {
                     (true, true) => " class=\"c\"",
@@ -418,7 +396,7 @@ fn blocks(md: &str, links: &Links<'_>, out: &mut String) {
             out.push_str("</tr></thead>\n<tbody>\n");
             i += 2;
             while i < lines.len() && lines[i].trim_start().starts_with('|') {
-                let mut cells = table_cells(lines[i]);
+                let mut cells = gfm_cells(lines[i]);
                 cells.resize(head.len(), String::new());
                 out.push_str("<tr>");
                 for (k, c) in cells.iter().enumerate() {
