@@ -26,6 +26,15 @@ pub fn latex_bold(tex: &str) -> String {
     format!("{{\\bfseries\\boldmath {tex}}}")
 }
 
+/// `tex` with a math superscript: inside its math when it ends in math (`$x^{s}$`, not
+/// `$x$$^{s}$`, which TeX may read as display math), else appended.
+pub fn latex_sup(tex: &str, sup: &str) -> String {
+    match tex.strip_suffix('$') {
+        Some(math) => format!("{math}^{{{sup}}}$"),
+        None => format!("{tex}$^{{{sup}}}$"),
+    }
+}
+
 /// Text for LaTeX: every character that is special in text mode escaped (one escaper for
 /// every table), and the few non-ASCII signs optbench writes (∞, —, ±) spelled in LaTeX,
 /// since pdflatex's default inputenc knows no glyph for them.
@@ -103,6 +112,8 @@ mod tests {
     #[test]
     fn bold_reaches_math() {
         assert_eq!(latex_bold("$0$"), "{\\bfseries\\boldmath $0$}");
+        assert_eq!(latex_sup("$0$", "1/3"), "$0^{1/3}$");
+        assert_eq!(latex_sup("diverged", "3/3"), "diverged$^{3/3}$");
     }
 
     #[test]

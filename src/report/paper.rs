@@ -2,7 +2,9 @@
 //! (booktabs) and CSV.
 
 use super::analysis::{ALPHA, Analysis, ObjectiveStats};
-use crate::render::latex::{booktabs, latex_bold, latex_escape, latex_label, latex_num, sentence};
+use crate::render::latex::{
+    booktabs, latex_bold, latex_escape, latex_label, latex_num, latex_sup, sentence,
+};
 use crate::render::table::{markdown, sig};
 use std::fmt::Write;
 
@@ -334,7 +336,8 @@ pub fn summary_latex(a: &Analysis) -> String {
     writeln!(s, "\\begin{{table}}[t]\n\\centering").unwrap();
     writeln!(
         s,
-        "\\caption{{Median final error over trials. Bold: {}; \
+        "\\caption{{Median over trials of the final error to the optimum (of the final value \
+         where the optimum is unknown, e.g.\\ a fit's RMSE). Bold: {}; \
          $^\\dagger$: different from the best (two-sided Mann--Whitney U, Holm-corrected, \
          $p<{ALPHA}$).}}",
         TIE_RULE
@@ -364,7 +367,7 @@ pub fn summary_latex(a: &Analysis) -> String {
                         let n = latex_num(o.cells[i].stats.median);
                         let n = if bold[i] { latex_bold(&n) } else { n };
                         if versus_best(o, i).0 {
-                            format!("{n}$^\\dagger$")
+                            latex_sup(&n, "\\dagger")
                         } else {
                             n
                         }
@@ -684,7 +687,7 @@ mod tests {
             !cells[2].contains("dagger"),
             "overlapping runs are not different: {row}"
         );
-        assert!(cells[3].ends_with("$^\\dagger$"), "{row}");
+        assert!(cells[3].ends_with("^{\\dagger}$"), "{row}");
     }
 
     #[test]
