@@ -313,9 +313,12 @@ fn control_suite_runs_through_optbench_run() {
         "figures/IMC_twin_sine3_compensation.svg",
         "figures/PID_mismatch_sine3_compensation-transient.png",
         "figures/rmse_twin_sweep-1-2hz.png",
+        "report.html",
     ] {
         assert!(out.join(f).is_file(), "{f}");
     }
+    // The page, the Markdown, the LaTeX and the browser's rendering (tools permitting).
+    common::check_report_outputs(&out);
     let cells: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(cells.as_array().unwrap().len(), 6);

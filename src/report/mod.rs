@@ -3,6 +3,7 @@
 //! IOHprofiler export) and `analysis.json`. The same folder always gives the same bytes.
 
 pub mod analysis;
+pub mod html;
 pub mod ioh;
 pub mod paper;
 
@@ -211,6 +212,20 @@ pub fn generate(dir: &Path) -> Result<String> {
     for f in [fresh_tables, fresh_plots, fresh_ioh] {
         f.commit()?;
     }
+    // Last, once the fresh folders are in place: the page embeds the figures just drawn.
+    let groups: Vec<String> = a.objectives.iter().map(|o| o.id.to_string()).collect();
+    html::write(
+        dir,
+        &html::Page {
+            title: &format!("optbench report: {} (seed {})", a.suite, a.seed),
+            markdown: &report,
+            statistics: &html::benchmark_statistics(),
+            figures: &dir.join("plots"),
+            figures_link: "plots/",
+            figure_groups: &groups,
+            provenance: &dir.join("provenance.json"),
+        },
+    )?;
     Ok(paper::summary_markdown(&a))
 }
 
@@ -486,8 +501,12 @@ pub fn compare(a_dir: &Path, b_dir: &Path) -> Result<String> {
         &table,
         &[false, false, true, true, true, true, true, false],
     );
-    for m in missing {
-        s += &format!("{m}\n");
+    if !missing.is_empty() {
+        // A blank line first: a line right under a table would render as one more row.
+        s.push('\n');
+        for m in missing {
+            s += &format!("- {m}\n");
+        }
     }
     Ok(s)
 }

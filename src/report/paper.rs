@@ -2,7 +2,9 @@
 //! (booktabs) and CSV.
 
 use super::analysis::{ALPHA, Analysis, ObjectiveStats};
-use crate::render::latex::{booktabs, latex_escape, latex_num};
+use crate::render::latex::{
+    booktabs, latex_bold, latex_escape, latex_label, latex_num, latex_sup, sentence,
+};
 use crate::render::table::{markdown, sig};
 use std::fmt::Write;
 
@@ -25,6 +27,24 @@ fn versus_best(o: &ObjectiveStats, i: usize) -> (bool, String) {
     }
 }
 
+/// Significant digits of every median the tables print (Markdown and LaTeX alike).
+const DIGITS: usize = 3;
+
+/// How the tables define the best, said in the report and in the LaTeX caption.
+pub const TIE_RULE: &str = "lowest median per objective, and every median that prints equal \
+                            to it (ties as printed, to 3 significant digits)";
+
+/// Which cells of `o` the tables mark as best: the lowest median and every cell whose
+/// median prints the same (to [`DIGITS`] significant digits). Ties are decided as printed,
+/// not as stored, so a reader never sees two equal numbers with only one marked.
+pub fn best_cells(o: &ObjectiveStats) -> Vec<bool> {
+    let best = sig(o.cells[o.best].stats.median, DIGITS);
+    o.cells
+        .iter()
+        .map(|c| sig(c.stats.median, DIGITS) == best)
+        .collect()
+}
+
 /// The main table: one row per objective x optimizer.
 pub fn summary_markdown(a: &Analysis) -> String {
     let header = [
@@ -41,22 +61,19 @@ pub fn summary_markdown(a: &Analysis) -> String {
     ];
     let mut rows = Vec::new();
     for o in &a.objectives {
+        let bold = best_cells(o);
         for (i, c) in o.cells.iter().enumerate() {
             let (significant, text) = versus_best(o, i);
             let med = format!(
                 "{} [{}, {}]",
-                sig(c.stats.median, 3),
-                sig(c.median_ci.0, 3),
-                sig(c.median_ci.1, 3)
+                sig(c.stats.median, DIGITS),
+                sig(c.median_ci.0, DIGITS),
+                sig(c.median_ci.1, DIGITS)
             );
             rows.push(vec![
                 o.id.to_string(),
                 c.optimizer.clone(),
-                if i == o.best {
-                    format!("**{med}**")
-                } else {
-                    med
-                },
+                if bold[i] { format!("**{med}**") } else { med },
                 sig(c.stats.q1, 3),
                 sig(c.stats.q3, 3),
                 sig(c.stats.mean, 3),
@@ -115,33 +132,48 @@ fn short(o: &ObjectiveStats) -> &'static str {
     if o.optimum.is_some() { "err" } else { "f" }
 }
 
-/// Median error at 1 %, 10 % and 100 % of the budget.
+/// Median error at 1 %, 10 % and 100 % of the budget: one table per objective, one column
+/// per evaluation count (objectives differ in budget, so they share no columns).
 pub fn fixed_budget_markdown(a: &Analysis) -> String {
-    let mut rows = Vec::new();
+    let mut out = String::new();
     for o in &a.objectives {
-        for (c, meds) in o.cells.iter().zip(&o.fixed_budget_medians) {
-            let cells: Vec<String> = o
-                .fixed_budgets
-                .iter()
-                .zip(meds)
-                .map(|(b, m)| format!("{}: {}", b, sig(*m, 3)))
-                .collect();
-            rows.push(vec![
-                o.id.to_string(),
-                c.optimizer.clone(),
-                cells.join(" | "),
-            ]);
-        }
+        let mut header = vec!["optimizer".to_string()];
+        header.extend(o.fixed_budgets.iter().map(|&b| {
+            let pct = 100.0 * b as f64 / o.budget.max(1) as f64;
+            let pct = if pct.fract() == 0.0 {
+                format!("{pct:.0}")
+            } else {
+                sig(pct, 2)
+            };
+            format!("{b} ({pct}% of budget)")
+        }));
+        let rows: Vec<Vec<String>> = o
+            .cells
+            .iter()
+            .zip(&o.fixed_budget_medians)
+            .map(|(c, meds)| {
+                let mut r = vec![c.optimizer.clone()];
+                r.extend(meds.iter().map(|m| sig(*m, 3)));
+                r
+            })
+            .collect();
+        let what = match (&o.label, o.optimum) {
+            (_, Some(_)) => "median error to the optimum".to_string(),
+            (Some(l), None) => format!("median {l}"),
+            (None, None) => "median value".to_string(),
+        };
+        writeln!(
+            out,
+            "**{}** ({what} after the evaluations in each column)\n",
+            o.id
+        )
+        .unwrap();
+        let h: Vec<&str> = header.iter().map(String::as_str).collect();
+        let right: Vec<bool> = (0..h.len()).map(|i| i > 0).collect();
+        out += &markdown(&h, &rows, &right);
+        out.push('\n');
     }
-    markdown(
-        &[
-            "objective",
-            "optimizer",
-            "median error at evaluations (1% | 10% | 100% of budget)",
-        ],
-        &rows,
-        &[false, false, false],
-    )
+    out
 }
 
 /// Metrics at the trials' final points (e.g. free-run and validation RMSE of a fitted
@@ -246,9 +278,10 @@ pub fn report_markdown(a: &Analysis) -> String {
         s,
         "Each trial counts with its final best: the error to the optimum where the optimum is \
          known, else the value as labelled below. Median with a 95 % percentile-bootstrap \
-         interval ({} resamples, seeded); quartiles are type 7. Bold: lowest median. \
-         'vs best': two-sided Mann-Whitney U against the best, Holm-corrected over all pairs \
-         of the objective, and A12 = P(this > best); * marks p < {ALPHA}.\n",
+         interval ({} resamples, seeded); quartiles are type 7. Bold: {TIE_RULE}. \
+         'vs best': two-sided Mann-Whitney U against the best (the lowest median; ties \
+         broken by the lower mean), Holm-corrected over all pairs of the objective, and \
+         A12 = P(this > best); * marks p < {ALPHA}.\n",
         super::analysis::RESAMPLES
     )
     .unwrap();
@@ -288,21 +321,29 @@ pub fn report_markdown(a: &Analysis) -> String {
     s
 }
 
-/// The summary as a booktabs table: objectives x optimizers, median errors, best in bold,
-/// a dagger where the difference to the best is significant after Holm.
+/// The summary as a booktabs table: objectives x optimizers, median errors, the best (and
+/// its ties as printed, [`best_cells`]) in bold math, a dagger where the difference to the
+/// best is significant after Holm, `--` where an optimizer did not run on an objective.
 pub fn summary_latex(a: &Analysis) -> String {
     let mut s = String::new();
     writeln!(s, "% optbench report: {} (seed {})", a.suite, a.seed).unwrap();
     writeln!(s, "% requires \\usepackage{{booktabs}}").unwrap();
+    writeln!(
+        s,
+        "% bold: {TIE_RULE}; written with \\boldmath, so math digits are bold too"
+    )
+    .unwrap();
     writeln!(s, "\\begin{{table}}[t]\n\\centering").unwrap();
     writeln!(
         s,
-        "\\caption{{Median final error over trials. Bold: best median per objective; \
+        "\\caption{{Median over trials of the final error to the optimum (of the final value \
+         where the optimum is unknown, e.g.\\ a fit's RMSE). Bold: {}; \
          $^\\dagger$: different from the best (two-sided Mann--Whitney U, Holm-corrected, \
-         $p<{ALPHA}$).}}"
+         $p<{ALPHA}$).}}",
+        TIE_RULE
     )
     .unwrap();
-    writeln!(s, "\\label{{tab:{}}}", latex_escape(&a.suite)).unwrap();
+    writeln!(s, "\\label{{tab:{}}}", latex_label(&a.suite)).unwrap();
     writeln!(
         s,
         "\\begin{{tabular}}{{l{}}}",
@@ -314,17 +355,25 @@ pub fn summary_latex(a: &Analysis) -> String {
     writeln!(s, "Objective & {} \\\\", head.join(" & ")).unwrap();
     writeln!(s, "\\midrule").unwrap();
     for o in &a.objectives {
-        let cells: Vec<String> = (0..o.cells.len())
-            .map(|i| {
-                let n = latex_num(o.cells[i].stats.median);
-                if i == o.best {
-                    format!("\\textbf{{{n}}}")
-                } else if versus_best(o, i).0 {
-                    format!("{n}$^\\dagger$")
-                } else {
-                    n
-                }
-            })
+        let bold = best_cells(o);
+        // One column per optimizer of the suite: an objective may run only some of them.
+        let cells: Vec<String> = a
+            .optimizers
+            .iter()
+            .map(
+                |name| match o.cells.iter().position(|c| &c.optimizer == name) {
+                    None => "--".to_string(),
+                    Some(i) => {
+                        let n = latex_num(o.cells[i].stats.median);
+                        let n = if bold[i] { latex_bold(&n) } else { n };
+                        if versus_best(o, i).0 {
+                            latex_sup(&n, "\\dagger")
+                        } else {
+                            n
+                        }
+                    }
+                },
+            )
             .collect();
         writeln!(s, "{} & {} \\\\", latex_escape(&o.id), cells.join(" & ")).unwrap();
     }
@@ -533,7 +582,7 @@ pub fn paper_table_markdown(t: &crate::pipeline::suite::PaperTable, a: &Analysis
 pub fn paper_table_latex(t: &crate::pipeline::suite::PaperTable, a: &Analysis) -> String {
     let caption = format!(
         "{} Ours: median over trials; {} in parentheses.",
-        latex_escape(&t.title),
+        latex_escape(&sentence(&t.title)),
         latex_escape(
             t.reference
                 .as_deref()
@@ -631,12 +680,72 @@ mod tests {
         assert!(tex.contains("Objective & good & same & bad \\\\"), "{tex}");
         let row = tex.lines().find(|l| l.starts_with("f\\_1 &")).unwrap();
         let cells: Vec<&str> = row.trim_end_matches(" \\\\").split(" & ").collect();
-        assert_eq!(cells[1], "\\textbf{$0.0650$}");
+        // Bold math: \textbf{$..$} would leave the digits regular.
+        assert_eq!(cells[1], "{\\bfseries\\boldmath $0.0650$}");
+        assert!(!tex.contains("\\textbf"), "{tex}");
         assert!(
             !cells[2].contains("dagger"),
             "overlapping runs are not different: {row}"
         );
-        assert!(cells[3].ends_with("$^\\dagger$"), "{row}");
+        assert!(cells[3].ends_with("^{\\dagger}$"), "{row}");
+    }
+
+    #[test]
+    fn ties_as_printed_are_all_bold_and_missing_cells_keep_their_column() {
+        let mut r = Vec::new();
+        for t in 0..6 {
+            // "a" and "b" differ only past the third digit: they print alike.
+            r.push(rec("a", t, 0.5 + 1e-9 * t as f64));
+            r.push(rec("b", t, 0.5 + 2e-9 * t as f64));
+            r.push(rec("c", t, 0.7));
+        }
+        let mut other = rec("c", 0, 0.1);
+        other.objective = "g".into();
+        r.push(other);
+        let info = ["f_1", "g"].map(|id| ObjectiveInfo {
+            id: crate::base::SafeName::new(id).unwrap(),
+            dim: 1,
+            targets: vec![],
+            label: None,
+        });
+        let a = analyse("s", 1, &info, &r, &Default::default());
+        assert_eq!(best_cells(&a.objectives[0]), [true, true, false]);
+        let tex = summary_latex(&a);
+        let row = |id: &str| -> Vec<String> {
+            let l = tex.lines().find(|l| l.starts_with(id)).unwrap();
+            l.trim_end_matches(" \\\\")
+                .split(" & ")
+                .map(String::from)
+                .collect()
+        };
+        let f = row("f\\_1 &");
+        assert!(
+            f[1].contains("boldmath") && f[2].contains("boldmath"),
+            "{tex}"
+        );
+        assert!(!f[3].contains("boldmath"), "{tex}");
+        // `g` ran only "c": its number sits in c's column, the others say so.
+        assert_eq!(
+            row("g &")[1..],
+            ["--", "--", "{\\bfseries\\boldmath $0.100$}"]
+        );
+        let md = summary_markdown(&a);
+        assert_eq!(md.matches("**0.500 [").count(), 2, "{md}");
+    }
+
+    #[test]
+    fn every_markdown_table_of_the_report_renders() {
+        let a = analysis();
+        let md = report_markdown(&a);
+        // summary, ranks note (no table: one objective), fixed budget, ERT, pairwise.
+        assert_eq!(crate::render::table::check_gfm_tables(&md), Ok(4), "{md}");
+        let fixed = fixed_budget_markdown(&a);
+        assert!(
+            fixed.contains(
+                "| optimizer | 1 (1% of budget) | 10 (10% of budget) | 100 (100% of budget) |"
+            ),
+            "{fixed}"
+        );
     }
 
     #[test]

@@ -225,3 +225,123 @@ pub fn traces(dir: &Path) -> Vec<Value> {
         })
         .collect()
 }
+
+/// The figure stems (file names without extension) of a results folder's `plots/` or
+/// `figures/`.
+fn figure_stems(folder: &Path) -> BTreeSet<String> {
+    let mut stems = BTreeSet::new();
+    for sub in ["plots", "figures"] {
+        let Ok(entries) = std::fs::read_dir(folder.join(sub)) else {
+            continue;
+        };
+        for e in entries {
+            let p = e.unwrap().path();
+            if matches!(p.extension().and_then(|x| x.to_str()), Some("svg" | "png")) {
+                stems.insert(p.file_stem().unwrap().to_string_lossy().into_owned());
+            }
+        }
+    }
+    stems
+}
+
+/// `report.html` of `folder` is one self-contained, well-formed page: every figure file
+/// embedded as a data URI, nothing loaded from elsewhere, one `<table>` per table of
+/// `report.md`, and every `<` and `&` of the text escaped.
+pub fn assert_html_report(folder: &Path) {
+    let html = std::fs::read_to_string(folder.join("report.html")).expect("report.html");
+    assert!(html.starts_with("<!DOCTYPE html>") && html.ends_with("</html>\n"));
+    for banned in ["<script", "<link", "<iframe", "<object", "<embed"] {
+        assert!(!html.contains(banned), "{banned} in report.html");
+    }
+    for (attr, allowed) in [("src=\"", "data:image/"), ("href=\"", "#")] {
+        for (i, _) in html.match_indices(attr) {
+            let value = &html[i + attr.len()..];
+            assert!(
+                value.starts_with(allowed),
+                "{attr}{} does not start with {allowed}",
+                &value[..value.len().min(60)]
+            );
+        }
+    }
+    // Markup, or an escaped character: a raw '<' or '&' of the text would be neither.
+    for (i, _) in html.match_indices('<') {
+        let next = html[i + 1..].chars().next().unwrap_or(' ');
+        assert!(
+            next.is_ascii_alphabetic() || next == '/' || next == '!',
+            "unescaped '<' in report.html: {}",
+            &html[i..(i + 40).min(html.len())]
+        );
+    }
+    for (i, _) in html.match_indices('&') {
+        let entity: String = html[i + 1..].chars().take_while(|c| *c != ';').collect();
+        assert!(
+            entity.len() <= 6
+                && (entity.chars().all(|c| c.is_ascii_alphabetic())
+                    || entity
+                        .strip_prefix('#')
+                        .is_some_and(|n| n.parse::<u32>().is_ok())),
+            "unescaped '&' in report.html: {}",
+            &html[i..(i + 40).min(html.len())]
+        );
+    }
+    for tag in ["table", "tr", "figure", "section", "ul", "p"] {
+        assert_eq!(
+            html.matches(&format!("<{tag}>")).count() + html.matches(&format!("<{tag} ")).count(),
+            html.matches(&format!("</{tag}>")).count(),
+            "<{tag}> opened and closed as often"
+        );
+    }
+    let stems = figure_stems(folder);
+    assert_eq!(
+        html.matches("<figure ").count(),
+        stems.len(),
+        "one figure per file"
+    );
+    for s in &stems {
+        assert!(html.contains(&format!(
+            "<figure id=\"fig-{s}\"><img alt=\"{s}\" src=\"data:image/"
+        )));
+    }
+    // One <table> per table of report.md (a delimiter row opens each).
+    let md = std::fs::read_to_string(folder.join("report.md")).unwrap();
+    let md_tables = md
+        .lines()
+        .filter(|l| l.starts_with("| -") || l.starts_with("| :"))
+        .count();
+    assert!(md_tables > 0);
+    // The page adds the provenance table.
+    assert_eq!(html.matches("<table>").count(), md_tables + 1);
+    assert!(html.contains("<h2>Statistics explained</h2>") && html.contains("Provenance"));
+}
+
+/// Runs `python3 scripts/NAME ARGS` from the crate root when python3 is there. Exit 3
+/// means a tool the script needs is missing: said on stderr and skipped.
+pub fn run_check_script(name: &str, args: &[&Path]) {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scripts")
+        .join(name);
+    let Ok(out) = Command::new("python3").arg(&script).args(args).output() else {
+        eprintln!("skipping {name}: python3 not found");
+        return;
+    };
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    match out.status.code() {
+        Some(0) => {}
+        Some(3) => eprintln!("skipping {name}: {}", text.trim()),
+        _ => panic!("{name} failed on {args:?}:\n{text}"),
+    }
+}
+
+/// Every output check of a results folder: the page here, then the Markdown (GFM
+/// renderer), LaTeX (pdflatex) and browser (Chromium) checks of scripts/ where their tools
+/// are installed.
+pub fn check_report_outputs(folder: &Path) {
+    assert_html_report(folder);
+    run_check_script("check_markdown.py", &[folder]);
+    run_check_script("check_latex.py", &[folder]);
+    run_check_script("check_html.py", &[folder]);
+}

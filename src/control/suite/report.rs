@@ -120,6 +120,35 @@ pub(super) fn report_markdown(
     s
 }
 
+/// What the statistics of the report mean (Markdown, for `report.html`).
+pub(super) fn statistics_markdown(suite: &ControlSuite) -> String {
+    format!(
+        "Every cell (plant x controller x reference) runs {trials} trials; a trial has its own \
+         sensor-noise realisation and, for IMC, its own PSO fit of the internal model, so the \
+         spread over trials is the spread a rerun of the experiment would show. A run whose \
+         divergence guard trips counts as +inf: a cell's median is finite only while fewer \
+         than half its runs failed.
+
+- **RMSE [mm]**: root mean square of reference minus output over the whole run; \
+  **after transient**: from {transient} s on.
+- **Median [lo, hi]**: the middle RMSE over the trials and a 95 % percentile-bootstrap \
+  interval of it ({resamples} resamples, seeded); an upper end of ∞ means failed runs reach into \
+  the interval.
+- **Ratio**: median RMSE of the second controller / median of the first.
+- **p (Wilcoxon)**: two-sided Wilcoxon signed-rank test over paired trials (both controllers \
+  of a trial see the same noise realisation), the test to read. **p (MW)**: the unpaired \
+  Mann-Whitney U test, for comparison; pairing removes the noise both share, so it is \
+  the weaker of the two here.
+- **A12**: the probability that the first controller's RMSE is larger than the second's \
+  in a random pair of trials (0.5: no difference); **first wins**: paired trials where the \
+  first is lower.
+- **(dissertation x)**: the dissertation's single run, beside our median over trials.",
+        trials = suite.trials,
+        transient = suite.transient,
+        resamples = super::tables::RESAMPLES
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -150,5 +179,8 @@ mod tests {
             !md.contains("## Internal models"),
             "no IMC, no models section"
         );
+        // The paper tables (one per [[table]]) and every cell render as GFM tables.
+        let tables = crate::render::table::check_gfm_tables(&md);
+        assert_eq!(tables, Ok(suite.tables.len() + 2), "{md}");
     }
 }

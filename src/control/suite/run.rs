@@ -265,6 +265,21 @@ pub fn run_suite(suite: &ControlSuite, threads: Option<usize>, out: &Path) -> Re
             .expect("serialisable")
             .as_bytes(),
     )?;
+    crate::report::html::write(
+        out,
+        &crate::report::html::Page {
+            title: &format!(
+                "optbench control suite: {} (seed {})",
+                suite.name, suite.seed
+            ),
+            markdown: &report,
+            statistics: &super::report::statistics_markdown(suite),
+            figures: &out.join("figures"),
+            figures_link: "figures/",
+            figure_groups: &[],
+            provenance: &out.join("provenance.json"),
+        },
+    )?;
 
     let mut text = format!(
         "control suite {} (seed {}, {} trials, {} threads, {:.1} s)\n\n",

@@ -7,7 +7,7 @@ use super::cell_index;
 use super::run::{ControlResults, RunRecord};
 use crate::base::TrialSeed;
 use crate::pipeline::suite::PaperTable;
-use crate::render::latex::{booktabs, latex_escape};
+use crate::render::latex::{booktabs, latex_escape, latex_num, latex_sup, sentence};
 use crate::render::table::{markdown, sig};
 use crate::report::paper::layout_markdown;
 use crate::stats::{a12, bootstrap_median_ci, describe, mann_whitney, wilcoxon};
@@ -41,7 +41,7 @@ pub struct MetricStats {
 }
 
 /// Bootstrap resamples for the median intervals (as the report's).
-const RESAMPLES: usize = 2000;
+pub(super) const RESAMPLES: usize = 2000;
 
 fn metric_stats(values: &[f64], rng_key: TrialSeed) -> MetricStats {
     let d = describe(values);
@@ -137,20 +137,45 @@ pub(super) fn cell_text(s: &CellStats, steady: bool) -> String {
     }
 }
 
+fn table_stats<'a>(
+    suite: &ControlSuite,
+    res: &'a ControlResults,
+    c: &str,
+) -> Option<&'a CellStats> {
+    let (p, ci, ri) = cell_index(c, &suite.controllers, &suite.plants, &suite.references).ok()?;
+    find_cell(
+        res,
+        &suite.controllers[ci].id,
+        &suite.plants[p].id,
+        &suite.references[ri].name,
+    )
+}
+
 fn table_cell(
     t: &PaperTable,
     suite: &ControlSuite,
     res: &ControlResults,
     c: &str,
 ) -> Option<String> {
-    let (p, ci, ri) = cell_index(c, &suite.controllers, &suite.plants, &suite.references).ok()?;
-    let s = find_cell(
-        res,
-        &suite.controllers[ci].id,
-        &suite.plants[p].id,
-        &suite.references[ri].name,
-    )?;
+    let s = table_stats(suite, res, c)?;
     Some(cell_text(s, t.value.as_deref() == Some("rmse_steady")))
+}
+
+/// A cell for LaTeX, short enough for a printed column: the median, and as a superscript
+/// `k/n` the runs that diverged (the interval and failure times are in the Markdown and
+/// `cells.csv`).
+fn latex_cell(s: &CellStats, steady: bool) -> String {
+    let m = if steady { &s.rmse_steady } else { &s.rmse };
+    let value = if m.median.is_finite() {
+        latex_num(m.median)
+    } else {
+        "diverged".into()
+    };
+    if s.failures > 0 {
+        latex_sup(&value, &format!("{}/{}", s.failures, s.trials))
+    } else {
+        value
+    }
 }
 
 /// A paper-layout table: our median [95 % CI] over trials, the dissertation's number beside it.
@@ -170,8 +195,10 @@ pub fn table_markdown(t: &PaperTable, suite: &ControlSuite, res: &ControlResults
 /// The same table in LaTeX (booktabs): ours, and the dissertation's number in parentheses.
 pub fn table_latex(t: &PaperTable, suite: &ControlSuite, res: &ControlResults) -> String {
     let caption = format!(
-        "{} Ours: median over {} trials [95\\% CI]; the dissertation's single run in parentheses.",
-        latex_escape(&t.title),
+        "{} Ours: median RMSE over {} trials, failed runs counted as $+\\infty$, with the \
+         runs that diverged as a superscript $k/n$; the dissertation's single run in \
+         parentheses.",
+        latex_escape(&sentence(&t.title)),
         suite.trials
     );
     let mut body = String::new();
@@ -181,10 +208,12 @@ pub fn table_latex(t: &PaperTable, suite: &ControlSuite, res: &ControlResults) -
             .iter()
             .enumerate()
             .map(|(i, c)| {
-                let ours = table_cell(t, suite, res, c).unwrap_or_else(|| "--".into());
+                let steady = t.value.as_deref() == Some("rmse_steady");
+                let ours = table_stats(suite, res, c)
+                    .map_or_else(|| "--".into(), |s| latex_cell(s, steady));
                 match row.seed.get(i).copied().filter(|v| v.is_finite()) {
-                    Some(v) => format!("{} ({})", latex_escape(&ours), sig(v, 3)),
-                    None => latex_escape(&ours),
+                    Some(v) => format!("{ours} ({})", latex_num(v)),
+                    None => ours,
                 }
             })
             .collect();
@@ -398,9 +427,12 @@ mod tests {
             "{md}"
         );
         let tex = table_latex(&suite.tables[0], &suite, &res);
-        assert!(
-            tex.contains("0.0200 [0.0180, 0.0220] (0.0100) & --"),
-            "{tex}"
+        assert!(tex.contains("$0.0200$ ($0.0100$) & --"), "{tex}");
+        let failed = cell("PI", "twin", 3, f64::INFINITY);
+        assert_eq!(latex_cell(&failed, false), "diverged$^{3/3}$");
+        assert_eq!(
+            latex_cell(&cell("PI", "twin", 1, 0.02), true),
+            "$0.0100^{1/3}$"
         );
         let csv = cells_csv(&res.cells);
         assert_eq!(csv.lines().count(), 2);
