@@ -152,6 +152,7 @@ pub fn diagnose_files(f: &Files, opts: &Options, out: &Path) -> Result<String> {
         });
     }
     d.couplings = coupling::couplings(&d, &others);
+    d.columns = Some(columns.clone());
     report::write(&d, out)?;
     Ok(format!(
         "{}\ndiagnosis.json and figures: {}\n",

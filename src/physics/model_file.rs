@@ -219,8 +219,8 @@ pub struct StructureSpec {
     pub placement: String,
     /// The training data's scales that make the shape unit-free.
     pub context: StructureContext,
-    /// Shape parameters (training record), by name.
-    pub shape: Vec<Named>,
+    /// Shape parameters (training record), by name, unit-free, with their search bounds.
+    pub shape: Vec<Param>,
     /// Linear coefficients (training record), by name.
     pub linear: Vec<Named>,
 }
@@ -296,8 +296,10 @@ impl ModelFile {
 
     /// The parameters that ended at a search bound: `(name, "lower" | "upper")`.
     pub fn at_bounds(&self) -> Vec<(&str, &str)> {
+        let shape = self.structure.iter().flat_map(|s| &s.shape);
         self.parameters
             .iter()
+            .chain(shape)
             .filter_map(|p| {
                 let b = p.search.as_ref()?.at_bound.as_deref()?;
                 Some((p.name.as_str(), b))
@@ -640,40 +642,53 @@ impl ModelFile {
             hold,
             min_substeps: c.min_substeps,
         };
-        let st = Structure::with_forms(&parts, s.fixed_n, ctx, placement);
+        let mut st = Structure::with_forms(&parts, s.fixed_n, ctx, placement);
+        let pairs = |v: &[Named]| -> Vec<(String, f64)> {
+            v.iter().map(|x| (x.name.clone(), x.value)).collect()
+        };
         let (shape, linear, field) = match record {
             Some(label) => {
                 let r = self.record(path, label)?;
-                if !structure::same_interval(r.sampling_interval_s, c.dt) {
-                    return Err(bad(
-                        path,
-                        &format!("records[{label}]"),
-                        "sampled at another interval than the training record; not supported",
-                    ));
+                let f = format!("records[{label}].sampling_interval_s");
+                if !(finite(path, &f, r.sampling_interval_s)? > 0.0) {
+                    return Err(bad(path, &f, "must be > 0"));
                 }
-                (&r.shape, &r.linear, format!("records[{label}]"))
+                // The record's state is that of the model at its own interval.
+                if !structure::same_interval(r.sampling_interval_s, c.dt) {
+                    st = st.at_interval(r.sampling_interval_s);
+                }
+                (
+                    pairs(&r.shape),
+                    pairs(&r.linear),
+                    format!("records[{label}]"),
+                )
             }
-            None => (&s.shape, &s.linear, "structure".to_string()),
+            None => (
+                s.shape.iter().map(|x| (x.name.clone(), x.value)).collect(),
+                pairs(&s.linear),
+                "structure".to_string(),
+            ),
         };
-        let by_name = |list: &[Named], names: Vec<String>, what: &str| -> Result<Vec<f64>> {
-            names
-                .iter()
-                .map(|n| {
-                    let f = format!("{field}.{what}.{n}");
-                    let v = list
-                        .iter()
-                        .find(|x| &x.name == n)
-                        .ok_or_else(|| bad(path, &f, "missing"))?;
-                    finite(path, &f, v.value)
-                })
-                .collect()
-        };
+        let by_name =
+            |list: &[(String, f64)], names: Vec<String>, what: &str| -> Result<Vec<f64>> {
+                names
+                    .iter()
+                    .map(|n| {
+                        let f = format!("{field}.{what}.{n}");
+                        let v = list
+                            .iter()
+                            .find(|x| &x.0 == n)
+                            .ok_or_else(|| bad(path, &f, "missing"))?;
+                        finite(path, &f, v.1)
+                    })
+                    .collect()
+            };
         let theta = by_name(
-            shape,
+            &shape,
             st.specs().iter().map(|s| s.name.to_string()).collect(),
             "shape",
         )?;
-        let coef = by_name(linear, st.linear_names(), "linear")?;
+        let coef = by_name(&linear, st.linear_names(), "linear")?;
         Ok((st, theta, coef))
     }
 

@@ -76,6 +76,21 @@ pub fn progress_bar(len: u64, unit: &str, show: bool) -> ProgressBar {
     bar
 }
 
+/// A spinner with a message (the stage of a job of unknown length), hidden as
+/// [`progress_bar`] is.
+pub fn spinner(show: bool) -> ProgressBar {
+    use std::io::IsTerminal;
+    if !show || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new_spinner();
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} {spinner} {msg}").expect("valid template"),
+    );
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    bar
+}
+
 /// Runs one planned trial of `suite` (on the calling thread).
 pub fn run_planned(suite: &Suite, t: &PlannedTrial) -> TrialRecord {
     let obj = &suite.objectives[t.objective];
