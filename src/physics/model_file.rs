@@ -33,7 +33,7 @@ pub const FORMAT: &str = "optbench-model";
 /// The version this build writes and reads.
 pub const VERSION: u32 = 1;
 /// A parameter within this share of its search range from a bound is flagged as at it.
-pub const BOUND_TOLERANCE: f64 = 1e-3;
+pub const BOUND_TOLERANCE: f64 = 1e-2;
 
 /// A fitted model, as stored.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
