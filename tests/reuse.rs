@@ -419,6 +419,9 @@ fn a_diagnosed_model_reproduces_its_validation_rmse() {
     assert_close(own, want, "diagnose's validate_predicted.csv");
 }
 
+/// A change to a model file.
+type Edit = Box<dyn Fn(&mut serde_json::Value)>;
+
 /// Bad model files: exit 2 with the file and the field.
 #[test]
 fn bad_model_files_are_refused_with_file_and_field() {
@@ -442,7 +445,7 @@ fn bad_model_files_are_refused_with_file_and_field() {
         d,
     );
     let good = read_json(&d.join("fit/model.json"));
-    let cases: Vec<(&str, Box<dyn Fn(&mut serde_json::Value)>, Vec<&str>)> = vec![
+    let cases: Vec<(&str, Edit, Vec<&str>)> = vec![
         (
             "kind",
             Box::new(|v| v["kind"] = "preisach".into()),

@@ -255,6 +255,14 @@ fn finite(path: &Path, field: &str, v: f64) -> Result<f64> {
     }
 }
 
+/// `v` finite and above zero (an interval, a scale).
+fn positive(path: &Path, field: &str, v: f64) -> Result<f64> {
+    if finite(path, field, v)? <= 0.0 {
+        return Err(bad(path, field, format!("{v}: must be > 0")));
+    }
+    Ok(v)
+}
+
 impl ModelFile {
     /// A new file of `kind` with the fields every kind has.
     #[allow(clippy::too_many_arguments)]
@@ -383,10 +391,7 @@ impl ModelFile {
 
     /// Checks that the model can run: every value it needs is present and finite.
     fn check(&self, path: &Path) -> Result<()> {
-        finite(path, "sampling_interval_s", self.sampling_interval_s)?;
-        if self.sampling_interval_s <= 0.0 {
-            return Err(bad(path, "sampling_interval_s", "must be > 0"));
-        }
+        positive(path, "sampling_interval_s", self.sampling_interval_s)?;
         for r in &self.records {
             let f = |n: &str| format!("records[{}].{n}", r.label);
             for (n, v) in [("d0", r.d0), ("h0", r.h0)] {
@@ -619,10 +624,7 @@ impl ModelFile {
             ("rate_ref", c.rate_ref),
             ("t_ref", c.t_ref),
         ] {
-            let f = format!("structure.context.{n}");
-            if !(finite(path, &f, v)? > 0.0) {
-                return Err(bad(path, &f, format!("{v}: must be > 0")));
-            }
+            positive(path, &format!("structure.context.{n}"), v)?;
         }
         if !(1..=64).contains(&c.min_substeps) {
             return Err(bad(
@@ -650,9 +652,7 @@ impl ModelFile {
             Some(label) => {
                 let r = self.record(path, label)?;
                 let f = format!("records[{label}].sampling_interval_s");
-                if !(finite(path, &f, r.sampling_interval_s)? > 0.0) {
-                    return Err(bad(path, &f, "must be > 0"));
-                }
+                positive(path, &f, r.sampling_interval_s)?;
                 // The record's state is that of the model at its own interval.
                 if !structure::same_interval(r.sampling_interval_s, c.dt) {
                     st = st.at_interval(r.sampling_interval_s);
