@@ -163,7 +163,8 @@ fn a_fitted_model_reproduces_its_validation_rmse_on_twin_recordings() {
         assert_close(got, want, &format!("{model} validation RMSE via simulate"));
         let (own, _) = residual_rmse(&d.join(&out).join("validate_predicted.csv"), skip);
         assert_close(own, want, &format!("{model} validate_predicted.csv"));
-        // A signal spec: input and prediction only, at the model's interval.
+        // A signal spec: input and prediction only, at the model's interval, under the
+        // column names the model was fitted on.
         ok(
             &[
                 "simulate",
@@ -175,8 +176,6 @@ fn a_fitted_model_reproduces_its_validation_rmse_on_twin_recordings() {
                 "0.2",
                 "--out",
                 "spec",
-                "--columns",
-                COLS,
             ],
             d,
         );

@@ -24,10 +24,10 @@ pub struct SimulateArgs {
     /// Sampling interval [s] (default: 0.001; with --model and a signal, the model's).
     #[arg(long)]
     pub dt: Option<f64>,
-    /// Column names written (with --model also read from --input: time, input and, if the
-    /// file has it, the measured output).
-    #[arg(long, default_value = "t,u,y")]
-    pub columns: String,
+    /// Column names written, default t,u,y (with --model also read from --input: time,
+    /// input and, if the file has it, the measured output; default the model's own).
+    #[arg(long)]
+    pub columns: Option<String>,
     /// Output folder (default: results/twin, or results/predicted with --model).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -55,7 +55,7 @@ pub struct SimulateArgs {
 }
 
 pub fn run(a: SimulateArgs) -> Result<()> {
-    let columns = Columns::parse(&a.columns)?;
+    let columns = a.columns.as_deref().map(Columns::parse).transpose()?;
     let text = if let (Some(model), Some(input)) = (a.model, a.input) {
         crate::pipeline::simulate::run_model(&crate::pipeline::simulate::ModelRequest {
             model,
@@ -86,7 +86,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
             twin: a.twin,
             seed: a.seed,
             dt,
-            columns,
+            columns: columns.unwrap_or_default(),
             out: a.out.unwrap_or_else(|| PathBuf::from("results/twin")),
         })?
     };

@@ -48,6 +48,10 @@ pub struct ModelFile {
     pub fitted: Fitted,
     /// Units of time, input and output (from the recording).
     pub units: Units,
+    /// The recording's column names of time, input and output (`simulate --model` reads
+    /// and writes these unless told otherwise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub columns: Option<Units>,
     /// Sampling interval of the (first) training record, s: a discrete-time model's step.
     pub sampling_interval_s: f64,
     /// What the search divided input and output by (1 where it ran on the raw data). The
@@ -81,6 +85,7 @@ pub struct Fitted {
     pub validate: Vec<String>,
 }
 
+/// Time, input and output: units, or column names.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Units {
     pub time: String,
@@ -291,6 +296,7 @@ impl ModelFile {
                 validate: Vec::new(),
             },
             units,
+            columns: None,
             sampling_interval_s: dt,
             normalisation,
             integration,
@@ -339,6 +345,13 @@ impl ModelFile {
         let mut json = serde_json::to_vec_pretty(self).expect("serialisable");
         json.push(b'\n');
         atomic_write(path, &json)
+    }
+
+    /// The column names of time, input and output the model was fitted on, if known.
+    pub fn column_names(&self) -> Option<[&str; 3]> {
+        self.columns
+            .as_ref()
+            .map(|c| [c.time.as_str(), c.input.as_str(), c.output.as_str()])
     }
 
     /// Reads and checks `path`.

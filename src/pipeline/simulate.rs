@@ -85,8 +85,8 @@ pub struct ModelRequest {
     /// A fitted record whose own initial state and offset to start from.
     pub record: Option<String>,
     /// Column names read from a CSV input (a missing output column is no measurement) and
-    /// written.
-    pub columns: Columns,
+    /// written (`None`: the model's own, else t,u,y).
+    pub columns: Option<Columns>,
     pub read: ReadOptions,
     /// Sampling interval of a signal spec (default: the model's).
     pub dt: Option<f64>,
@@ -104,19 +104,19 @@ struct ModelInput {
     stem: String,
 }
 
-fn model_input(req: &ModelRequest, model_dt: f64) -> Result<ModelInput> {
+fn model_input(req: &ModelRequest, columns: &Columns, model_dt: f64) -> Result<ModelInput> {
     let path = Path::new(&req.input);
     if path.is_file() {
         let names = header_names(path, &req.read)?;
-        let measured = names.contains(&req.columns.output);
+        let measured = names.contains(&columns.output);
         // Without the output column the input is read in its place (and not used).
         let cols = Columns {
             output: if measured {
-                req.columns.output.clone()
+                columns.output.clone()
             } else {
-                req.columns.input.clone()
+                columns.input.clone()
             },
-            ..req.columns.clone()
+            ..columns.clone()
         };
         let rec = read_noting(path, &cols, &req.read)?;
         let stem = path
@@ -180,7 +180,12 @@ fn model_input(req: &ModelRequest, model_dt: f64) -> Result<ModelInput> {
 /// to print (the RMSE against a measured output, when the input has one).
 pub fn run_model(req: &ModelRequest) -> Result<String> {
     let model = ModelFile::read(&req.model)?;
-    let input = model_input(req, model.sampling_interval_s)?;
+    let columns = match (&req.columns, model.column_names()) {
+        (Some(c), _) => c.clone(),
+        (None, Some([t, u, y])) => Columns::parse(&format!("{t},{u},{y}"))?,
+        (None, None) => Columns::default(),
+    };
+    let input = model_input(req, &columns, model.sampling_interval_s)?;
     let pred = model.run(
         &req.model,
         &Input {
@@ -193,7 +198,7 @@ pub fn run_model(req: &ModelRequest) -> Result<String> {
     std::fs::create_dir_all(&req.out)
         .map_err(|e| Error::io(format!("creating {}", req.out.display()), e))?;
     let path = req.out.join(format!("{}_predicted.csv", input.stem));
-    let c = &req.columns;
+    let c = &columns;
     model_file::write_prediction(
         &path,
         [&c.time, &c.input, &c.output],

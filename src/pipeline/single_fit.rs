@@ -241,15 +241,15 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
         train: trains.iter().map(|(_, r)| r.name.clone()).collect(),
         validate: held.iter().map(|(_, r)| r.name.clone()).collect(),
     };
+    let columns = crate::data::recording::Columns::parse(&req.columns)?;
+    model.columns = Some(model_file::Units {
+        time: columns.time.clone(),
+        input: columns.input.clone(),
+        output: columns.output.clone(),
+    });
     let model_path = req.out.join("model.json");
     model.write(&model_path)?;
-    let predicted = write_predictions(
-        &model,
-        &model_path,
-        &recs,
-        &crate::data::recording::Columns::parse(&req.columns)?,
-        &req.out,
-    )?;
+    let predicted = write_predictions(&model, &model_path, &recs, &columns, &req.out)?;
 
     let mut text = format!(
         "{} fitted by {} to {} ({} evaluations, {:.1} s)\n\n",
