@@ -122,12 +122,18 @@ fn parameters_at_a_bound_are_flagged() {
         Search::new(0.0, 0.0, 1.5).at_bound.as_deref(),
         Some("lower")
     );
+    // Within a hundredth of the range of a bound, not further.
     assert_eq!(
-        Search::new(1.4999, 0.0, 1.5).at_bound.as_deref(),
+        Search::new(1.49, 0.0, 1.5).at_bound.as_deref(),
         Some("upper")
     );
+    assert_eq!(
+        Search::new(-0.99, -1.0, 1.0).at_bound.as_deref(),
+        Some("lower")
+    );
     assert_eq!(Search::new(0.75, 0.0, 1.5).at_bound, None);
-    assert_eq!(Search::new(1.49, 0.0, 1.5).at_bound, None);
+    assert_eq!(Search::new(1.48, 0.0, 1.5).at_bound, None);
+    assert_eq!(Search::new(-0.97, -1.0, 1.0).at_bound, None);
     let mut m = bouc_wen_file();
     m.parameters[2] = m.parameters[2].clone().searched(1.5, 0.0, 1.5);
     assert_eq!(m.at_bounds(), vec![("beta", "upper")]);
