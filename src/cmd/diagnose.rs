@@ -103,6 +103,9 @@ pub struct DiagnoseArgs {
     /// tied models' predictions differ most (`next_experiment` in diagnosis.json).
     #[arg(long)]
     pub suggest: bool,
+    /// No progress display (it shows only when stderr is a terminal anyway).
+    #[arg(short, long)]
+    pub quiet: bool,
 }
 
 fn effects(spec: &Option<String>) -> Result<Vec<Effect>> {
@@ -162,6 +165,7 @@ fn diagnose(a: DiagnoseArgs) -> Result<()> {
         min_substeps: a.min_substeps,
         validate_periodic: a.validate_periodic,
         suggest: a.suggest,
+        progress: !a.quiet,
         ..Options::default()
     };
     opts.fixed_n()?;

@@ -57,6 +57,9 @@ pub struct FitArgs {
     /// Output folder (default: results/fit-MODEL-OPTIMIZER).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// No progress bar (it shows only when stderr is a terminal anyway).
+    #[arg(short, long)]
+    pub quiet: bool,
 }
 
 pub fn run(a: FitArgs) -> Result<()> {
@@ -79,6 +82,7 @@ pub fn run(a: FitArgs) -> Result<()> {
             model_params: a.params,
             optimizer_params: a.opt,
             out,
+            progress: !a.quiet,
         })
     })?;
     print!("{text}");

@@ -35,6 +35,7 @@ pub mod recordings;
 pub mod refit;
 pub mod report;
 pub mod residual;
+pub mod saved;
 pub mod suggest;
 pub mod tie;
 
@@ -93,6 +94,8 @@ pub struct Options {
     pub validate_periodic: bool,
     /// Design the excitation that would separate each tie ([`suggest::design`]).
     pub suggest: bool,
+    /// Show the stage on stderr (a terminal only).
+    pub progress: bool,
 }
 
 impl Default for Options {
@@ -137,6 +140,7 @@ impl Default for Options {
             feedback: true,
             validate_periodic: false,
             suggest: false,
+            progress: false,
         }
     }
 }
@@ -281,6 +285,12 @@ pub struct Diagnosis {
     /// The recording that would settle the first tie the final model holds (`--suggest`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub next_experiment: Option<suggest::NextExperiment>,
+    /// The final model as `model.json` (not in diagnosis.json).
+    #[serde(skip)]
+    pub model_file: crate::physics::model_file::ModelFile,
+    /// Column names of the recordings (`None`: t,u,y), for the predicted-output files.
+    #[serde(skip)]
+    pub columns: Option<crate::data::recording::Columns>,
     /// Other inputs of the validation file the final residual is coherent with
     /// ([`coupling::couplings`]; filled by the command, which reads the file).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -395,6 +405,27 @@ impl Data {
         }
     }
 
+    /// `f` on the validation record(s) `(u, y)` (`y` used only for the record's own
+    /// state): the model at the validation interval, the record's shape (its initial state
+    /// and timing searched), the evaluations used, the output and the coefficients with the
+    /// record's own ones refitted.
+    fn validation_fit(
+        &self,
+        f: &Fitted,
+        u: &[f64],
+        y: &[f64],
+        seed: u64,
+    ) -> (Fitted, Vec<f64>, u64, Vec<f64>, Vec<f64>) {
+        let other_interval = !refit::same_interval(self.dv, self.scope.dt);
+        let f = match &self.validation_parts {
+            Some(parts) => f.on_records(parts),
+            None => f.at_interval(self.dv),
+        };
+        let (theta, used) = refit::record_state_for(&f, u, y, 60, seed, other_interval);
+        let (out, coef) = f.structure.simulate_on(&theta, &f.linear.coef, u, y);
+        (f, theta, used, out, coef)
+    }
+
     /// `f`'s output on the validation input (recorded output `yv`, used only for the
     /// record's own initial state); a periodic record is simulated over two periods and the
     /// second returned, so no start-up transient is scored. Also the evaluations used and
@@ -412,13 +443,7 @@ impl Data {
         } else {
             (self.uv.clone(), yv.to_vec())
         };
-        let other_interval = !refit::same_interval(self.dv, self.scope.dt);
-        let f = match &self.validation_parts {
-            Some(parts) => f.on_records(parts),
-            None => f.at_interval(self.dv),
-        };
-        let (theta, used) = refit::record_state_for(&f, &u, &y, 60, seed, other_interval);
-        let (out, coef) = f.structure.simulate_on(&theta, &f.linear.coef, &u, &y);
+        let (f, _, used, out, coef) = self.validation_fit(f, &u, &y, seed);
         let own = f.structure.record_coefs().len()
             + f.structure
                 .specs()
@@ -1784,6 +1809,8 @@ pub fn diagnose_with_tests(
     opts: &Options,
 ) -> Result<Diagnosis> {
     let started = std::time::Instant::now();
+    let spin = crate::pipeline::runner::spinner(opts.progress);
+    spin.set_message("fitting the plain model");
     let fixed_n = opts.fixed_n()?;
     let (tj, vj) = (
         Joined::of(train, "training")?,
@@ -1895,6 +1922,10 @@ pub fn diagnose_with_tests(
     let base_evals_fit = base_fit.evaluations;
     let base = evaluate(base_fit, &d, opts);
     evaluations += base.fitted.evaluations - base_evals_fit;
+    spin.set_message(format!(
+        "calibrating the residual tests ({} bootstrap refits)",
+        opts.bootstrap
+    ));
     let (boot, boot_evals) = bootstrap_scores(&base.fitted, &d, noise.max(1e-300), opts);
     evaluations += boot_evals;
     let ev_base = validation_residual(&d.yv, &base);
@@ -1975,6 +2006,10 @@ pub fn diagnose_with_tests(
                 break;
             }
             round += 1;
+            spin.set_message(format!(
+                "round {round}: extending {}",
+                current.fitted.structure.label()
+            ));
             let parent = current.fitted.structure.clone();
             let mut pool = candidate_pool(&parent, opts);
             if pool.is_empty() {
@@ -2449,6 +2484,7 @@ pub fn diagnose_with_tests(
     search_stop.push_str(&exchange_note);
     let mut hold_trials = Vec::new();
     if opts.choose_hold && current.fitted.structure.placement() == Placement::Feedback {
+        spin.set_message("refitting the final model under each hold");
         let used;
         (current, hold_trials, used) = choose_hold(current, &d, opts);
         evaluations += used;
@@ -2506,6 +2542,29 @@ pub fn diagnose_with_tests(
         }
         m
     };
+    spin.finish_and_clear();
+    // The final model as a file that runs again, with the validation record's own state
+    // where that is one record run once (a periodic one is scored on its second period).
+    let validation = (!opts.validate_periodic && d.validation_parts.is_none()).then(|| {
+        let (_, theta, _, _, coef) = d.validation_fit(&current.fitted, &d.uv, &d.yv, opts.seed);
+        saved::ValidationState {
+            name: validate.name.clone(),
+            dt: dv,
+            theta,
+            coef,
+        }
+    });
+    let [ut, ui, uo] = &train.units;
+    let mut model = saved::model_file(&current.fitted, [ut, ui, uo], validation);
+    model.fitted = crate::physics::model_file::Fitted {
+        command: "diagnose".into(),
+        optimizer: "pso + levenberg-marquardt".into(),
+        budget: 0,
+        evaluations,
+        seed: opts.seed,
+        train: vec![train.name.clone()],
+        validate: vec![validate.name.clone()],
+    };
     let mut diag = Diagnosis {
         model: opts.model.clone(),
         train: train.name.clone(),
@@ -2539,6 +2598,8 @@ pub fn diagnose_with_tests(
         series,
         next_experiment: None,
         couplings: Vec::new(),
+        model_file: model,
+        columns: None,
     };
     let next = diag
         .in_final()

@@ -231,17 +231,23 @@ pub fn run(
         .iter()
         .flat_map(|k| seeds.iter().map(move |&s| (k.clone(), s)))
         .collect();
+    let bar = crate::pipeline::runner::progress_bar(jobs.len() as u64, "cases", opts.progress);
     let results: Vec<Result<(CaseKind, u64, Diagnosis)>> = jobs
         .par_iter()
         .map(|(k, s)| {
             let (t, v) = generate(k, *s, seconds)?;
+            // One bar for the proof; the cases run in parallel, without their own.
             let o = Options {
                 seed: *s,
+                progress: false,
                 ..opts.clone()
             };
-            Ok((k.clone(), *s, diagnose(&t, &v, &o)?))
+            let d = diagnose(&t, &v, &o)?;
+            bar.inc(1);
+            Ok((k.clone(), *s, d))
         })
         .collect();
+    bar.finish_and_clear();
     // The twin's mode sits after the hysteresis: the feedback placement is a wrong answer.
     let mut labels: Vec<String> = Effect::ALL.iter().map(|e| e.name().to_string()).collect();
     let at = labels

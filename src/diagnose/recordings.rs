@@ -152,6 +152,12 @@ pub fn diagnose_files(f: &Files, opts: &Options, out: &Path) -> Result<String> {
         });
     }
     d.couplings = coupling::couplings(&d, &others);
+    d.columns = Some(columns.clone());
+    d.model_file.columns = Some(crate::physics::model_file::Units {
+        time: columns.time.clone(),
+        input: columns.input.clone(),
+        output: columns.output.clone(),
+    });
     report::write(&d, out)?;
     Ok(format!(
         "{}\ndiagnosis.json and figures: {}\n",

@@ -3,6 +3,7 @@
 use super::{Diagnosis, residual};
 use crate::base::atomic_write;
 use crate::base::error::{Error, Result};
+use crate::physics::model_file;
 use crate::render;
 use crate::render::table::sig;
 use std::fmt::Write as _;
@@ -284,7 +285,32 @@ pub fn write(d: &Diagnosis, dir: &Path) -> Result<()> {
     let mut json = serde_json::to_vec_pretty(d).expect("serialisable");
     json.push(b'\n');
     atomic_write(&dir.join("diagnosis.json"), &json)?;
+    write_model(d, dir)?;
     figures(d, dir)
+}
+
+/// `model.json` of the final model, and its output beside the measured one on the training
+/// and validation data (`train_predicted.csv`, `validate_predicted.csv`).
+fn write_model(d: &Diagnosis, dir: &Path) -> Result<()> {
+    d.model_file.write(&dir.join("model.json"))?;
+    let columns = d.columns.clone().unwrap_or_default();
+    let names = [
+        columns.time.as_str(),
+        columns.input.as_str(),
+        columns.output.as_str(),
+    ];
+    let s = &d.series;
+    for (i, label) in ["train", "validate"].into_iter().enumerate() {
+        model_file::write_prediction(
+            &dir.join(format!("{label}_predicted.csv")),
+            names,
+            &s.t[i],
+            &s.u[i],
+            Some(&s.y[i]),
+            &s.final_model[i],
+        )?;
+    }
+    Ok(())
 }
 
 /// Mean residual in 20 equal-count bins of `u`, per direction of `u`.

@@ -11,6 +11,9 @@ use crate::base::error::{Error, Result};
 use crate::data::recording::Recording;
 use crate::physics::bouc_wen::{self, BoucWenParams, SimStatus};
 use crate::physics::bouc_wen_fast::{self, FastInput};
+use crate::physics::model_file::{
+    Integration, ModelFile, Network, Normalisation, Param, RecordState, Units,
+};
 use crate::physics::rbf::{self, Mode, Narx, RbfNet, Regressors};
 use crate::physics::rbf_fast::RbfBatch;
 
@@ -81,6 +84,28 @@ pub trait FitView {
     fn outputs(&self, p: &[f64], set: usize) -> Vec<(String, Vec<f64>)>;
     /// Parameters by name, in physical units where they have them.
     fn named_params(&self, p: &[f64]) -> Vec<(String, f64)>;
+    /// The model at `p` as a file that runs again ([`ModelFile`]): de-normalised
+    /// parameters with their search bounds, the scales, the scheme and each record's own
+    /// state. The caller fills in how it was fitted.
+    fn model(&self, p: &[f64]) -> ModelFile;
+}
+
+/// Units of the first training record, and a quotient `out/in` of them ("" if both are).
+fn units_of(rec: &Recording) -> (Units, String) {
+    let [t, u, y] = rec.units.clone();
+    let ratio = if u.is_empty() && y.is_empty() {
+        String::new()
+    } else {
+        format!("{y}/{u}")
+    };
+    (
+        Units {
+            time: t,
+            input: u,
+            output: y,
+        },
+        ratio,
+    )
 }
 
 /// The training recordings and any number of labelled validation recordings, scaled alike.
@@ -317,6 +342,107 @@ impl FitView for RbfFit {
             v.push((format!("w{}", j + 1), p[h * i + h + j]));
         }
         v
+    }
+
+    /// Centres and weights de-normalised (each regressor in its own unit); a node's width,
+    /// one number on the normalised regressors, becomes one width per regressor.
+    fn model(&self, p: &[f64]) -> ModelFile {
+        let t = self.data.train();
+        let (units, _) = units_of(&self.data.recordings[0].1);
+        let (h, ni) = (self.net.hidden, self.net.inputs);
+        let lags = self.narx.input_lags;
+        let scale = |k: usize| if k < lags { t.u_scale } else { t.y_scale };
+        let unit = |k: usize| {
+            if k < lags {
+                units.input.clone()
+            } else {
+                units.output.clone()
+            }
+        };
+        let lag = |v: &str, l: usize| {
+            if l == 0 {
+                format!("{v}(k)")
+            } else {
+                format!("{v}(k-{l})")
+            }
+        };
+        let regressors: Vec<String> = (0..ni)
+            .map(|k| {
+                if k < lags {
+                    lag("u", k)
+                } else {
+                    lag("y", k - lags + 1)
+                }
+            })
+            .collect();
+        let (lo, hi) = (self.bounds.lower(), self.bounds.upper());
+        let mut params = Vec::with_capacity(p.len());
+        for j in 0..h {
+            for k in 0..ni {
+                let x = j * ni + k;
+                params.push(
+                    Param::new(format!("c{}_{}", j + 1, k + 1), p[x] * scale(k), unit(k))
+                        .searched(p[x], lo[x], hi[x]),
+                );
+            }
+        }
+        // The width the network uses (`b²` floored, see `rbf::WIDTH_FLOOR`).
+        let width = |b: f64| (b * b).max(rbf::WIDTH_FLOOR * rbf::WIDTH_FLOOR).sqrt();
+        for j in 0..h {
+            let x = h * ni + j;
+            params.push(
+                Param::new(format!("b{} (normalised)", j + 1), width(p[x]), "")
+                    .searched(p[x], lo[x], hi[x]),
+            );
+        }
+        for j in 0..h {
+            let x = h * ni + h + j;
+            params.push(
+                Param::new(
+                    format!("w{}", j + 1),
+                    p[x] * t.y_scale,
+                    units.output.clone(),
+                )
+                .searched(p[x], lo[x], hi[x]),
+            );
+        }
+        let network = Network {
+            input_lags: self.narx.input_lags,
+            output_lags: self.narx.output_lags,
+            regressors,
+            centres: (0..h)
+                .map(|j| (0..ni).map(|k| p[j * ni + k] * scale(k)).collect())
+                .collect(),
+            widths: (0..h)
+                .map(|j| (0..ni).map(|k| width(p[h * ni + j]) * scale(k)).collect())
+                .collect(),
+            weights: (0..h).map(|j| p[h * ni + h + j] * t.y_scale).collect(),
+        };
+        let mode = match self.mode {
+            Mode::OneStepAhead => "one-step-ahead predictions",
+            Mode::FreeRun => "a free run",
+        };
+        let mut m = ModelFile::new(
+            "rbf",
+            &format!(
+                "Gaussian RBF NARX network (dissertation section 3.2): y(k) = sum_j w_j exp(-1/2 sum_i ((x_i - c_ji)/b_ji)^2), x the regressors; fitted on {mode}, run free (its own past outputs)"
+            ),
+            units,
+            self.data.recordings[0].1.dt(),
+            Normalisation {
+                input_scale: t.u_scale,
+                output_scale: t.y_scale,
+            },
+            Integration {
+                scheme: "narx".into(),
+                substeps: None,
+                hold: None,
+            },
+            "the first max(input_lags - 1, output_lags) outputs are the measured ones (0 without a measured output); from there the network feeds back its own outputs",
+            params,
+        );
+        m.network = Some(network);
+        m
     }
 }
 
@@ -903,6 +1029,103 @@ impl FitView for BoucWenFit {
         }
         v
     }
+
+    /// The parameters de-normalised: with `u = u_s u'` and `y = y_s y'` (the scales the
+    /// search ran on), `d_e` and `α` scale by `y_s/u_s`, `β` and `γ` by
+    /// `1/(u_s y_s^(n-1))`, offsets and states by `y_s`; each record's own offset and
+    /// initial state (refitted ones for validation records where the fit refits them).
+    fn model(&self, p: &[f64]) -> ModelFile {
+        let t = self.data.train();
+        let (us, ys) = (t.u_scale, t.y_scale);
+        let (units, ratio) = units_of(&self.data.recordings[0].1);
+        let shape_unit = if ratio.is_empty() {
+            String::new()
+        } else {
+            format!("{}^(1-n)/{}", units.output, units.input)
+        };
+        let (lo, hi) = (self.bounds.lower(), self.bounds.upper());
+        let n = p[4];
+        let shape = 1.0 / (us * ys.powf(n - 1.0));
+        let mut params: Vec<Param> = [
+            ("d_e", ys / us, ratio.as_str()),
+            ("alpha", ys / us, ratio.as_str()),
+            ("beta", shape, shape_unit.as_str()),
+            ("gamma", shape, shape_unit.as_str()),
+            ("n", 1.0, ""),
+        ]
+        .into_iter()
+        .enumerate()
+        .map(|(i, (name, k, unit))| Param::new(name, p[i] * k, unit).searched(p[i], lo[i], hi[i]))
+        .collect();
+        let at = |r: usize| {
+            if r == 0 {
+                String::new()
+            } else {
+                format!("@{}", r + 1)
+            }
+        };
+        if self.with_d0 {
+            for r in 0..self.fast.len() {
+                let x = 5 + r;
+                params.push(
+                    Param::new(format!("d0{}", at(r)), p[x] * ys, units.output.clone())
+                        .searched(p[x], lo[x], hi[x]),
+                );
+            }
+        }
+        for r in 0..self.fast.len() {
+            if let Some(x) = self.state_at(r) {
+                let h0 = self.train_state(p, &self.params(p, r), r);
+                params.push(
+                    Param::new(format!("h0{}", at(r)), h0 * ys, units.output.clone())
+                        .searched(p[x], lo[x], hi[x]),
+                );
+            }
+        }
+        let (scheme, substeps) = match self.scheme() {
+            BoucWenScheme::Fast { substeps } => ("fast", Some(substeps)),
+            BoucWenScheme::Accurate => ("accurate", None),
+            BoucWenScheme::Explicit => ("explicit", None),
+        };
+        let records = self
+            .data
+            .recordings
+            .iter()
+            .enumerate()
+            .map(|(set, (label, rec))| {
+                let (params, h0) = self.params_and_state(p, set);
+                RecordState {
+                    label: label.clone(),
+                    name: rec.name.clone(),
+                    sampling_interval_s: rec.dt(),
+                    d0: Some(params.d0 * ys),
+                    h0: Some(h0 * ys),
+                    substeps: substeps.map(|m| self.fast.get(set).map_or(m, FastInput::substeps)),
+                    shape: Vec::new(),
+                    linear: Vec::new(),
+                }
+            })
+            .collect();
+        let mut m = ModelFile::new(
+            "bouc-wen",
+            "Bouc-Wen (dissertation eq. 3.1-3.3): y = d_e u + d0 - h, dh = alpha du - beta |du| |h|^(n-1) h - gamma du |h|^n, integrated in the input",
+            units,
+            self.data.recordings[0].1.dt(),
+            Normalisation {
+                input_scale: us,
+                output_scale: ys,
+            },
+            Integration {
+                scheme: scheme.into(),
+                substeps,
+                hold: None,
+            },
+            "from rest (h0 = 0) at the first sample, offset d0 (the first training record's; 0 when not fitted); with --record LABEL from that record's own d0 and h0 (records)",
+            params,
+        );
+        m.records = records;
+        m
+    }
 }
 
 #[cfg(test)]
@@ -1122,6 +1345,58 @@ pub(crate) mod tests {
             assert!(metric(&always, &x, "v RMSE") < rms);
             assert!(make(&[], Some(true)).named_params(&x).len() == 6);
         }
+    }
+
+    /// The written model (de-normalised, run in the recording's units) predicts what the
+    /// fit scored, on normalised data, for every record: Bouc-Wen with several records
+    /// (each its own offset and state, the validation one refitted) and the RBF network.
+    #[test]
+    fn the_model_file_reproduces_the_fits_errors() {
+        use crate::physics::model_file::Input;
+        let scaled = |r: Recording, k: f64| {
+            let u = r.u.iter().map(|v| 3.0 * v).collect();
+            let y = r.y.iter().map(|v| k * v).collect();
+            Recording::uniform(r.name.clone(), r.dt(), u, y).unwrap()
+        };
+        let (a, _) = bw_record("a", 1.0, 0, 750, 0.02, 0.001, 1);
+        let (b, _) = bw_record("b", 0.7, 1071, 900, 0.07, 0.001, 2);
+        let (v, _) = bw_record("v", 0.9, 1300, 1000, -0.03, 0.001, 3);
+        let (a, b, v) = (scaled(a, 0.2), scaled(b, 0.2), scaled(v, 0.2));
+        let fit = BoucWenFit::new(&[a, b], &[("v".into(), v)], true, true, 0.0, 1.5).unwrap();
+        let x = [0.9, 1.1, 0.55, 0.35, 0.9, 0.1, 0.3, 0.2, -0.4];
+        let path = std::path::Path::new("model.json");
+        let check = |obj: &dyn Objective, x: &[f64], metric_of: &dyn Fn(&str) -> String| {
+            let m = obj.as_fit().unwrap().model(x);
+            for (label, rec) in obj.as_fit().unwrap().recordings() {
+                let own = m.records.iter().any(|r| r.label == label);
+                let input = Input {
+                    u: &rec.u,
+                    y: Some(&rec.y),
+                    dt: rec.dt(),
+                };
+                let out = m.run(path, &input, own.then_some(label)).unwrap();
+                let got = m.rmse(&rec.y, &out);
+                let want = metric(obj, x, &metric_of(label));
+                assert!(
+                    (got - want).abs() <= 1e-9 * want,
+                    "{label}: {got} vs {want}"
+                );
+            }
+        };
+        check(&fit, &x, &|l| format!("{l} RMSE"));
+        let rec = eq318_recording(400);
+        let rbf = RbfFit::new(
+            std::slice::from_ref(&rec),
+            &[("validate".into(), scaled(eq318_recording(300), 2.0))],
+            RbfNet::new(3, 7),
+            Narx::SEED,
+            Mode::OneStepAhead,
+        )
+        .unwrap();
+        let mut rng = crate::base::TrialSeed::from_u64(4).rng(0);
+        let mut p = vec![0.0; 35];
+        rbf.bounds().sample(&mut rng, &mut p);
+        check(&rbf, &p, &|l| format!("{l} free-run RMSE"));
     }
 
     #[test]

@@ -19,6 +19,7 @@ pub mod bouc_wen_fast;
 pub mod fastmath;
 pub mod fixtures;
 pub mod linear;
+pub mod model_file;
 pub mod rbf;
 pub mod rbf_fast;
 pub mod restoring;

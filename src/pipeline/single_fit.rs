@@ -11,7 +11,8 @@ use crate::base::params::{Origin, Params};
 use crate::base::{TrialSeed, atomic_write};
 use crate::harness::TrialRecord;
 use crate::objective::Objective;
-use crate::pipeline::runner::{TrialSpec, run_trial};
+use crate::physics::model_file::{self, Input, ModelFile};
+use crate::pipeline::runner::{TrialSpec, progress_bar, run_trial_observed};
 use crate::registry::{objective_kinds, optimizer_kinds};
 use crate::render::{self, table::sig};
 use serde::Serialize;
@@ -40,6 +41,8 @@ pub struct FitRequest {
     /// Extra optimizer parameters.
     pub optimizer_params: Vec<String>,
     pub out: PathBuf,
+    /// Show a progress bar (on a terminal).
+    pub progress: bool,
 }
 
 /// A `key=value` flag value as a TOML value (numbers and booleans typed, else a string).
@@ -165,17 +168,22 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
         )));
     }
 
-    let record = run_trial(TrialSpec {
-        objective_id: &req.model,
-        optimizer_id: &req.optimizer,
-        trial: 0,
-        objective: Arc::clone(&objective),
-        optimizer: optimizer.as_ref(),
-        budget: req.budget,
-        stop_value: None,
-        stall: None,
-        seed: TrialSeed::derive(req.seed, &req.model, &req.optimizer, 0),
-    });
+    let bar = progress_bar(req.budget, "evaluations", req.progress);
+    let record = run_trial_observed(
+        TrialSpec {
+            objective_id: &req.model,
+            optimizer_id: &req.optimizer,
+            trial: 0,
+            objective: Arc::clone(&objective),
+            optimizer: optimizer.as_ref(),
+            budget: req.budget,
+            stop_value: None,
+            stall: None,
+            seed: TrialSeed::derive(req.seed, &req.model, &req.optimizer, 0),
+        },
+        &|used| bar.set_position(used),
+    );
+    bar.finish_and_clear();
 
     std::fs::create_dir_all(&req.out)
         .map_err(|e| Error::io(format!("creating {}", req.out.display()), e))?;
@@ -219,6 +227,25 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
     line.push(b'\n');
     atomic_write(&req.out.join("trace.jsonl"), &line)?;
     write_figures(&req.out, objective.as_ref(), &record)?;
+    let mut model = view.model(&record.best_x);
+    model.fitted = model_file::Fitted {
+        command: "fit".into(),
+        optimizer: req.optimizer.clone(),
+        budget: req.budget,
+        evaluations: record.evaluations,
+        seed: req.seed,
+        train: trains.iter().map(|(_, r)| r.name.clone()).collect(),
+        validate: held.iter().map(|(_, r)| r.name.clone()).collect(),
+    };
+    let columns = crate::data::recording::Columns::parse(&req.columns)?;
+    model.columns = Some(model_file::Units {
+        time: columns.time.clone(),
+        input: columns.input.clone(),
+        output: columns.output.clone(),
+    });
+    let model_path = req.out.join("model.json");
+    model.write(&model_path)?;
+    let predicted = write_predictions(&model, &model_path, &recs, &columns, &req.out)?;
 
     let mut text = format!(
         "{} fitted by {} to {} ({} evaluations, {:.1} s)\n\n",
@@ -238,8 +265,69 @@ pub fn run_fit(req: &FitRequest) -> Result<String> {
             text += &format!("  {k:<w$} {}\n", sig(*v, 6));
         }
     }
-    text += &format!("\nfit folder: {}\n", req.out.display());
+    text += &bound_notes(&model);
+    text += &format!(
+        "\nmodel (runs again with `optbench simulate --model`): {}\npredicted outputs: {}\nfit folder: {}\n",
+        model_path.display(),
+        predicted.join(", "),
+        req.out.display()
+    );
     Ok(text)
+}
+
+/// One line per parameter the search left at a bound (the optimum may lie beyond it).
+pub fn bound_notes(model: &ModelFile) -> String {
+    let at = model.at_bounds();
+    if at.is_empty() {
+        return String::new();
+    }
+    let mut text = String::from("\n");
+    for (name, side) in at {
+        text += &format!("{name} at its {side} bound: widen the range or check the model\n");
+    }
+    text
+}
+
+/// Runs `model` on every record of the fit (each from its own fitted state) and writes
+/// `LABEL_predicted.csv` beside the measured output; returns the files written. A record
+/// the model diverges on is named and left out.
+pub fn write_predictions(
+    model: &ModelFile,
+    model_path: &Path,
+    recs: &[(&str, &crate::data::recording::Recording)],
+    columns: &crate::data::recording::Columns,
+    dir: &Path,
+) -> Result<Vec<String>> {
+    let names = [
+        columns.time.as_str(),
+        columns.input.as_str(),
+        columns.output.as_str(),
+    ];
+    let mut written = Vec::new();
+    for (label, rec) in recs {
+        let input = Input {
+            u: &rec.u,
+            y: Some(&rec.y),
+            dt: rec.dt(),
+        };
+        let own = model.records.iter().any(|r| r.label == *label);
+        match model.run(model_path, &input, own.then_some(*label)) {
+            Ok(pred) => {
+                let file = format!("{label}_predicted.csv");
+                model_file::write_prediction(
+                    &dir.join(&file),
+                    names,
+                    &rec.t,
+                    &rec.u,
+                    Some(&rec.y),
+                    &pred,
+                )?;
+                written.push(file);
+            }
+            Err(e) => eprintln!("note: no {label}_predicted.csv: {e}"),
+        }
+    }
+    Ok(written)
 }
 
 fn write_figures(dir: &Path, objective: &dyn Objective, record: &TrialRecord) -> Result<()> {

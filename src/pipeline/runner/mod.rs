@@ -3,7 +3,7 @@
 
 pub mod trial;
 
-pub use trial::{TrialSpec, run_trial};
+pub use trial::{TrialSpec, run_trial, run_trial_observed};
 
 use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
@@ -42,19 +42,7 @@ pub fn run_trials(
     let pool = builder
         .build()
         .map_err(|e| Error::Input(format!("cannot start {:?} threads: {e}", opts.threads)))?;
-    let bar = if opts.progress {
-        let bar = ProgressBar::new(plan.len() as u64);
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{elapsed_precise} [{bar:40}] {pos}/{len} trials ({eta} left) {msg}",
-            )
-            .expect("static template")
-            .progress_chars("=> "),
-        );
-        bar
-    } else {
-        ProgressBar::hidden()
-    };
+    let bar = progress_bar(plan.len() as u64, "trials", opts.progress);
     let records = pool.install(|| {
         plan.par_iter()
             .enumerate()
@@ -68,6 +56,39 @@ pub fn run_trials(
     });
     bar.finish_and_clear();
     Ok((records, pool.current_num_threads()))
+}
+
+/// A progress bar of `len` steps counted in `unit` on stderr, or a hidden one when `show`
+/// is false or stderr is not a terminal (a log file gets no bar lines).
+pub fn progress_bar(len: u64, unit: &str, show: bool) -> ProgressBar {
+    use std::io::IsTerminal;
+    if !show || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(len);
+    bar.set_style(
+        ProgressStyle::with_template(&format!(
+            "{{elapsed_precise}} [{{bar:40}}] {{pos}}/{{len}} {unit} ({{eta}} left) {{msg}}"
+        ))
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    bar
+}
+
+/// A spinner with a message (the stage of a job of unknown length), hidden as
+/// [`progress_bar`] is.
+pub fn spinner(show: bool) -> ProgressBar {
+    use std::io::IsTerminal;
+    if !show || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new_spinner();
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} {spinner} {msg}").expect("valid template"),
+    );
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    bar
 }
 
 /// Runs one planned trial of `suite` (on the calling thread).

@@ -24,6 +24,12 @@ pub struct TrialSpec<'a> {
 
 /// Runs one trial: the executor loop. The optimizer steps until the evaluator says done.
 pub fn run_trial(spec: TrialSpec<'_>) -> TrialRecord {
+    run_trial_observed(spec, &|_| {})
+}
+
+/// [`run_trial`], calling `step(evaluations used)` after every optimizer step (a
+/// progress bar's hook).
+pub fn run_trial_observed(spec: TrialSpec<'_>, step: &dyn Fn(u64)) -> TrialRecord {
     let start = Instant::now();
     let mut optimizer = spec
         .optimizer
@@ -38,6 +44,7 @@ pub fn run_trial(spec: TrialSpec<'_>) -> TrialRecord {
             "optimizer {} spent no evaluation in a step",
             spec.optimizer_id
         );
+        step(ev.used());
     }
     drop(optimizer);
     let trace = ev.finish();
