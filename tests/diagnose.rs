@@ -294,7 +294,7 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
                 "--model",
                 "preisach",
             ],
-            "--model preisach",
+            "invalid value 'preisach' for '--model <MODEL>'",
         ),
         (
             vec![
@@ -305,7 +305,7 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
                 "--hold",
                 "staircase",
             ],
-            "--hold staircase",
+            "invalid value 'staircase' for '--hold <HOLD>'",
         ),
         (
             vec![
@@ -930,7 +930,7 @@ fn command_takes_several_records() {
     );
     refused(
         "diagnose --train a.csv --validate c.csv --hold cubic",
-        "valid: zoh, linear, bandlimited, auto",
+        "[possible values: zoh, linear, bandlimited, auto]",
     );
     refused(
         "diagnose --train a.csv --validate c.csv --min-substeps 0",

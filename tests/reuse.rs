@@ -468,6 +468,20 @@ fn bad_model_files_are_refused_with_file_and_field() {
             vec!["parameters.d_e", "not a finite number"],
         ),
     ];
+    // A file that is not there: the user's input, exit 2 with what was expected.
+    let out = optbench(
+        &[
+            "simulate",
+            "--model",
+            "nope.json",
+            "--input",
+            "train.csv",
+            "--out",
+            "sim",
+        ],
+        d,
+    );
+    refused(&out, &["--model nope.json", "cannot read", "model.json"]);
     for (name, edit, needles) in cases {
         let mut v = good.clone();
         edit(&mut v);

@@ -356,8 +356,13 @@ impl ModelFile {
 
     /// Reads and checks `path`.
     pub fn read(path: &Path) -> Result<ModelFile> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| Error::io(format!("reading model {}", path.display()), e))?;
+        // A path the user typed: a missing or unreadable file is their input (exit 2).
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            Error::Input(format!(
+                "--model {}: cannot read ({e}); expected the model.json of an `optbench fit` or `diagnose` folder",
+                path.display()
+            ))
+        })?;
         let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
             bad(
                 path,
