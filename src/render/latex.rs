@@ -29,8 +29,10 @@ pub fn latex_bold(tex: &str) -> String {
 /// `tex` with a math superscript: inside its math when it ends in math (`$x^{s}$`, not
 /// `$x$$^{s}$`, which TeX may read as display math), else appended.
 pub fn latex_sup(tex: &str, sup: &str) -> String {
-    match tex.strip_suffix('$') {
-        Some(math) => format!("{math}^{{{sup}}}$"),
+    match tex.strip_prefix('$').and_then(|t| t.strip_suffix('$')) {
+        // Braced: a number in powers of ten already ends in a superscript, and `x^a^b` is
+        // TeX's "Double superscript" error.
+        Some(math) => format!("${{{math}}}^{{{sup}}}$"),
         None => format!("{tex}$^{{{sup}}}$"),
     }
 }
@@ -112,7 +114,12 @@ mod tests {
     #[test]
     fn bold_reaches_math() {
         assert_eq!(latex_bold("$0$"), "{\\bfseries\\boldmath $0$}");
-        assert_eq!(latex_sup("$0$", "1/3"), "$0^{1/3}$");
+        assert_eq!(latex_sup("$0$", "1/3"), "${0}^{1/3}$");
+        // A power of ten: the number braced, else "Double superscript" in TeX.
+        assert_eq!(
+            latex_sup(&latex_num(5.94e-15), "\\dagger"),
+            "${5.94\\cdot10^{-15}}^{\\dagger}$"
+        );
         assert_eq!(latex_sup("diverged", "3/3"), "diverged$^{3/3}$");
     }
 

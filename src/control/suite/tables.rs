@@ -432,7 +432,7 @@ mod tests {
         assert_eq!(latex_cell(&failed, false), "diverged$^{3/3}$");
         assert_eq!(
             latex_cell(&cell("PI", "twin", 1, 0.02), true),
-            "$0.0100^{1/3}$"
+            "${0.0100}^{1/3}$"
         );
         let csv = cells_csv(&res.cells);
         assert_eq!(csv.lines().count(), 2);
