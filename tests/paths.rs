@@ -5,10 +5,9 @@
 
 mod common;
 
-use common::{optbench, refused};
+use common::{ok, optbench, refused};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
-use std::process::Output;
 
 /// Every path under `root`, relative to it (`skip` left out with its contents).
 fn tree(root: &Path, skip: Option<&Path>) -> BTreeSet<PathBuf> {
@@ -27,15 +26,6 @@ fn tree(root: &Path, skip: Option<&Path>) -> BTreeSet<PathBuf> {
         }
     }
     all
-}
-
-fn ok(out: &Output) {
-    assert!(
-        out.status.success(),
-        "exit {:?}: {}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stderr)
-    );
 }
 
 /// The ids that must not become file names: traversal, absolute (inside the test's own

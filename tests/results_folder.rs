@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{optbench, read_json, refused};
+use common::{ok, optbench, read_json, refused};
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -78,16 +78,6 @@ kind = "de"
 id = "DE"
 population = 10
 "#;
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "exit {:?}: {}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 /// Every file below `dir` (relative paths), sorted.
 fn files(dir: &Path) -> Vec<String> {

@@ -4,22 +4,13 @@
 
 mod common;
 
-use common::{optbench, refused, summary, traces};
+use common::{ok, optbench, refused, summary, traces};
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 const BIN: &str = env!("CARGO_BIN_EXE_optbench");
-
-fn ok(out: &Output) {
-    assert!(
-        out.status.success(),
-        "exit {:?}: {}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
 
 fn progress_lines(dir: &Path) -> usize {
     std::fs::read_to_string(dir.join("progress.jsonl"))

@@ -6,10 +6,10 @@
 
 mod common;
 
-use common::{optbench, refused, summary, traces};
+use common::{ok, optbench, refused, summary, traces};
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 const BIN: &str = env!("CARGO_BIN_EXE_optbench");
@@ -53,16 +53,6 @@ population = 40
 [[optimizer]]
 kind = "cmaes"
 "#;
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "exit {:?}: {}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 fn log_lines(dir: &Path) -> Vec<String> {
     std::fs::read_to_string(dir.join("progress.jsonl"))
@@ -158,7 +148,8 @@ fn resume_after(damage: impl Fn(&mut Vec<String>) -> Vec<String>) -> (String, Ve
     std::fs::create_dir(d.join("cut")).unwrap();
     std::fs::write(d.join("cut/progress.jsonl"), lines.join("\n") + "\n").unwrap();
     let out = optbench(&["run", "s.toml", "--out", "cut", "--resume"], d);
-    let err = ok(&out);
+    ok(&out);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         stdout.contains(&format!("{} trials resumed", 8 - lost.len())),

@@ -3,6 +3,7 @@
 use crate::base::error::{Error, Result};
 use crate::base::limits::MAX_THREADS;
 use crate::speed::{BenchConfig, STAGES, run_with_progress};
+use std::io::IsTerminal;
 
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
@@ -26,7 +27,9 @@ pub fn run(a: BenchArgs) -> Result<()> {
     } else {
         BenchConfig::full()
     };
-    let bar = super::progress_bar(STAGES as u64, "measurements", a.quiet);
+    // As `run`: no bar when the report goes to a pipe or file either.
+    let show = !a.quiet && std::io::stdout().is_terminal();
+    let bar = crate::pipeline::runner::progress_bar(STAGES as u64, "measurements", show);
     let report = super::with_threads(a.threads, || {
         Ok(run_with_progress(&cfg, &mut |stage| {
             bar.inc(1);

@@ -102,19 +102,3 @@ fn with_threads<T: Send>(threads: Option<u32>, f: impl FnOnce() -> Result<T> + S
             .install(f),
     }
 }
-
-/// A progress bar on stderr over `len` steps of `what`; hidden when `quiet` or when stderr or
-/// stdout is not a terminal (logs and pipes get only the results).
-pub fn progress_bar(len: u64, what: &str, quiet: bool) -> indicatif::ProgressBar {
-    use std::io::IsTerminal;
-    if quiet || !std::io::stderr().is_terminal() || !std::io::stdout().is_terminal() {
-        return indicatif::ProgressBar::hidden();
-    }
-    let bar = indicatif::ProgressBar::new(len);
-    if let Ok(style) = indicatif::ProgressStyle::with_template(&format!(
-        "{{elapsed_precise}} [{{bar:40}}] {{pos}}/{{len}} {what} ({{eta}} left) {{msg}}"
-    )) {
-        bar.set_style(style.progress_chars("=> "));
-    }
-    bar
-}

@@ -998,22 +998,15 @@ impl FitView for BoucWenFit {
             (format!("gamma{tag}"), p[3]),
             ("n".into(), p[4]),
         ];
-        let at = |r: usize| {
-            if r == 0 {
-                String::new()
-            } else {
-                format!("@{}", r + 1)
-            }
-        };
         if self.with_d0 {
             for r in 0..self.fast.len() {
-                v.push((format!("d0{} [{yu}]", at(r)), p[5 + r] * ys));
+                v.push((format!("d0{} [{yu}]", record_tag(r)), p[5 + r] * ys));
             }
         }
         if self.with_h0 {
             for r in 0..self.fast.len() {
                 let h0 = self.train_state(p, &self.params(p, r), r);
-                v.push((format!("h0{} [{yu}]", at(r)), h0 * ys));
+                v.push((format!("h0{} [{yu}]", record_tag(r)), h0 * ys));
             }
         }
         if self.refits_validation() {
@@ -1057,19 +1050,16 @@ impl FitView for BoucWenFit {
         .enumerate()
         .map(|(i, (name, k, unit))| Param::new(name, p[i] * k, unit).searched(p[i], lo[i], hi[i]))
         .collect();
-        let at = |r: usize| {
-            if r == 0 {
-                String::new()
-            } else {
-                format!("@{}", r + 1)
-            }
-        };
         if self.with_d0 {
             for r in 0..self.fast.len() {
                 let x = 5 + r;
                 params.push(
-                    Param::new(format!("d0{}", at(r)), p[x] * ys, units.output.clone())
-                        .searched(p[x], lo[x], hi[x]),
+                    Param::new(
+                        format!("d0{}", record_tag(r)),
+                        p[x] * ys,
+                        units.output.clone(),
+                    )
+                    .searched(p[x], lo[x], hi[x]),
                 );
             }
         }
@@ -1077,8 +1067,12 @@ impl FitView for BoucWenFit {
             if let Some(x) = self.state_at(r) {
                 let h0 = self.train_state(p, &self.params(p, r), r);
                 params.push(
-                    Param::new(format!("h0{}", at(r)), h0 * ys, units.output.clone())
-                        .searched(p[x], lo[x], hi[x]),
+                    Param::new(
+                        format!("h0{}", record_tag(r)),
+                        h0 * ys,
+                        units.output.clone(),
+                    )
+                    .searched(p[x], lo[x], hi[x]),
                 );
             }
         }
@@ -1125,6 +1119,15 @@ impl FitView for BoucWenFit {
         );
         m.records = records;
         m
+    }
+}
+
+/// The suffix naming record `r`'s own parameter (`d0`, `d0@2`, ...): none for the first.
+fn record_tag(r: usize) -> String {
+    if r == 0 {
+        String::new()
+    } else {
+        format!("@{}", r + 1)
     }
 }
 

@@ -138,6 +138,17 @@ pub fn optbench(args: &[&str], cwd: &Path) -> Output {
         .expect("run optbench")
 }
 
+/// Asserts that the command succeeded (its exit code and stderr in the message); its stdout.
+pub fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "exit {:?}: {}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
 /// [`optbench`]'s exit code and standard error.
 pub fn code_and_stderr(args: &[&str], cwd: &Path) -> (Option<i32>, String) {
     let o = optbench(args, cwd);
