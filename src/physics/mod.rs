@@ -7,6 +7,8 @@
 //!   discretised, each with a one-step API.
 //! - [`prandtl_ishlinskii`]: the Prandtl-Ishlinskii operator model (plain, asymmetric,
 //!   rate-dependent), linear in its weights, with the analytic inverse used for feedforward.
+//! - [`preisach`]: the discretised Preisach model (a triangle of relays over the training
+//!   input's range), linear in its weights, with its memory (wiping-out, congruency) tested.
 //! - [`rbf`]: the Gaussian RBF network, its NARX model (one-step and free-run) and the
 //!   back-propagation baseline.
 //! - [`restoring`]: an oscillator whose restoring force is hysteretic (the hysteresis
@@ -23,6 +25,7 @@ pub mod fixtures;
 pub mod linear;
 pub mod model_file;
 pub mod prandtl_ishlinskii;
+pub mod preisach;
 pub mod rbf;
 pub mod rbf_fast;
 pub mod restoring;
