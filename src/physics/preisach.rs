@@ -189,11 +189,36 @@ impl PreisachGrid {
 /// A discretised Preisach model: relay weights `μ_ij ≥ 0` on a [`PreisachGrid`] and an
 /// output offset.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "PreisachFile")]
 pub struct Preisach {
     pub grid: PreisachGrid,
     /// `μ_ij` at [`PreisachGrid::index`]`(i, j)`, output units per relay.
     pub weights: Vec<f64>,
     pub offset: f64,
+}
+
+/// A model file's fields, checked against each other before they make a model.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PreisachFile {
+    grid: PreisachGrid,
+    weights: Vec<f64>,
+    offset: f64,
+}
+
+impl TryFrom<PreisachFile> for Preisach {
+    type Error = String;
+    fn try_from(f: PreisachFile) -> Result<Self, String> {
+        if let Some(k) = f.weights.iter().position(|w| !w.is_finite()) {
+            return Err(format!(
+                "Preisach weights: weight {k} is {}; expected finite weights",
+                f.weights[k]
+            ));
+        }
+        let mut theta = f.weights;
+        theta.push(f.offset);
+        f.grid.model(&theta)
+    }
 }
 
 impl Preisach {

@@ -391,6 +391,11 @@ fn a_model_file_round_trips_and_checks_its_grid() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("u_max > u_min"), "{e}");
+    let short = text.replace(r#""weights":["#, r#""weights":[1.0,"#);
+    let e = serde_json::from_str::<Preisach>(&short)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("expected 11 (10 relays and the offset)"), "{e}");
 }
 
 #[test]
