@@ -126,6 +126,8 @@ pub struct OperatorFit {
     data: Datasets,
     /// The fixed basis's columns on every set (training first), normalised.
     rows: Vec<Rows>,
+    /// Which coefficients are constrained to be non-negative.
+    nonneg: Vec<bool>,
     bounds: Bounds,
     /// `(J*, θ*)` of the `weights` search.
     optimum: Option<(f64, Vec<f64>)>,
@@ -226,6 +228,7 @@ impl OperatorFit {
             shape,
             data,
             rows: cols.iter().map(|c| Rows::new(c)).collect(),
+            nonneg: nonneg.clone(),
             bounds,
             optimum: None,
             cap,
@@ -437,6 +440,10 @@ impl FitView for OperatorFit {
         for (j, q) in m.parameters.iter_mut().take(theta.len()).enumerate() {
             let i = off + j;
             *q = q.clone().searched(p[i], lo[i], hi[i]);
+            // A weight at 0 is at the model's constraint, not at a search limit to widen.
+            if let Some(s) = q.search.as_mut().filter(|_| self.nonneg[j]) {
+                s.at_bound = s.at_bound.take().filter(|b| b != "lower");
+            }
         }
         for (k, v) in x.iter().enumerate() {
             m.parameters

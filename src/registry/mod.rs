@@ -482,7 +482,7 @@ const PI_PARAMS: &[Spec] = recording_params![
             min: f64::MIN_POSITIVE,
             max: MAX_MAGNITUDE
         },
-        default: D::Float(10.0),
+        default: D::Float(4.0),
         help: "search box of each coefficient: |coefficient| x its column's RMS <= this, in units of the normalised output (non-negative weights from 0); the weights search refuses a box that misses the optimum",
     },
 ];

@@ -21,7 +21,7 @@ fn fit(form: PiForm, search: OperatorSearch) -> OperatorFit {
         form,
         6,
         search,
-        10.0,
+        4.0,
     )
     .unwrap()
 }
