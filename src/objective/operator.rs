@@ -427,7 +427,7 @@ impl FitView for OperatorFit {
     /// increments `s1`, ...) with their searched values and bounds.
     fn model(&self, p: &[f64]) -> ModelFile {
         let t = self.data.train();
-        let (units, _) = units_of(&self.data.recordings()[0].1);
+        let (units, _) = units_of(self.data.recordings()[0].1);
         let dt = self.data.recordings()[0].1.dt();
         let (x, theta) = self.split(p);
         let scales = (t.u_scale, t.y_scale);
