@@ -84,7 +84,8 @@ def render(d):
     rows = []
     for key, title, unit in SETS:
         for model, label in MODELS[2:]:
-            rows.append([f"{label}, {title.split(',')[0]}{'' if key == 'p885' else ' ' + key}",
+            where = "P-885 stack" if key == "p885" else f"twin {key[:-2]} Hz"
+            rows.append([f"{label}, {where}",
                          *[shown(f"{model}-{key}:{o}", f"train RMSE above the optimum [{unit}]")
                            for o in OPTIMIZERS]])
     f["models-optimum"] = markdown_table(["PI fit (RMSE above the optimum, mm or um)",
@@ -97,31 +98,52 @@ def render(d):
     pis = [m for m, _ in MODELS[2:]]
     best_pi = {k: min(pis, key=lambda m: va[(m, k)]) for k, _, _ in SETS}
     label = dict(MODELS)
-    ms = {k: max(med(f"{m}-{k}:MSGA", f"train RMSE above the optimum [{u}]") for m in pis)
-          for k, _, u in SETS}
+
+    def versus(a, b):
+        """How held-out error `a` compares with `b`: within 5 % counts as a tie."""
+        if abs(a - b) <= 0.05 * b:
+            return "as good as"
+        return f"{a / b:.1f} times worse than" if a > b else f"{b / a:.1f} times better than"
+
+    above = {(m, k, o): med(f"{m}-{k}:{o}", f"train RMSE above the optimum [{u}]")
+             for m in pis for k, _, u in SETS for o in OPTIMIZERS}
+    ms_worst = {k: max(above[(m, k, "MSGA")] for m in pis) for k, _, _ in SETS}
+    exact = [m for m in pis if all(above[(m, k, "CMA-ES")] < 1e-9 for k, _, _ in SETS)]
+    rbf_never = all(va[("rbf", k)] > min(va[(m, k)] for m in ["bw"] + pis) for k, _, _ in SETS)
+    b1, b28 = best_pi["1hz"], best_pi["28hz"]
+    where = {"1hz": "the twin at 1 Hz", "28hz": "the twin at 28 Hz", "p885": "the P-885 stack"}
+    wins = [where[k] for k, _, _ in SETS if va[("bw", k)] < 0.95 * va[(best_pi[k], k)]]
+    loses = [where[k] for k, _, _ in SETS if where[k] not in wins]
     f["models-claims"] = " ".join([
-        "With CMA-ES (medians): on the twin at 1 Hz Bouc-Wen fits best, training "
-        f"{sig(tr[('bw', '1hz')])} mm and held-out {sig(va[('bw', '1hz')])} mm, against "
-        f"{sig(va[(best_pi['1hz'], '1hz')])} mm held-out for the best PI form "
-        f"({label[best_pi['1hz']]}); at 28 Hz Bouc-Wen's held-out error is "
-        f"{sig(va[('bw', '28hz')])} mm and the best PI form's "
-        f"{sig(va[(best_pi['28hz'], '28hz')])} mm. The twin is a Bouc-Wen actuator with "
-        "rate effects, so Bouc-Wen has the right structure there by construction.",
-        "On the real P-885 stack the ranking is not Bouc-Wen's: PI plain reaches "
-        f"{sig(tr[('pi-plain', 'p885')])} um in training and {sig(va[('pi-plain', 'p885')])} "
-        f"um held-out with 11 parameters, Bouc-Wen with its offset {sig(tr[('bw', 'p885')])} "
-        f"and {sig(va[('bw', 'p885')])} um, the RBF network {sig(tr[('rbf', 'p885')])} and "
-        f"{sig(va[('rbf', 'p885')])} um in free run; the asymmetric and rate-dependent PI "
-        f"forms fit the training run closer ({sig(tr[('pi-asym', 'p885')])} and "
-        f"{sig(tr[('pi-rate', 'p885')])} um) but generalise worse "
-        f"({sig(va[('pi-asym', 'p885')])} and {sig(va[('pi-rate', 'p885')])} um held-out).",
-        "So the dissertation's choice of Bouc-Wen over operator models is borne out on its own "
-        "twin but not on this measured stack, where a plain PI model fitted exactly by "
-        "least squares (no search needed) is as good on held-out data as the best Bouc-Wen "
-        "fit. What the dissertation's method choice hides: MSGA, its optimizer, stays far "
-        f"from the PI optimum (up to {sig(ms['p885'])} um above it on the P-885 stack, "
-        f"{sig(ms['1hz'])} mm on the twin at 1 Hz), while CMA-ES reaches it to rounding on "
-        "the plain and asymmetric forms: on a convex fitting problem the choice of "
-        "optimizer, not of model, decides the error a GA-family method reports.",
+        "Held-out errors with CMA-ES (medians): on the twin at 1 Hz the best PI form "
+        f"({label[b1]}, {sig(va[(b1, '1hz')])} mm) is {versus(va[(b1, '1hz')], va[('bw', '1hz')])} "
+        f"Bouc-Wen ({sig(va[('bw', '1hz')])} mm); at 28 Hz the best ({label[b28]}, "
+        f"{sig(va[(b28, '28hz')])} mm) is {versus(va[(b28, '28hz')], va[('bw', '28hz')])} "
+        f"Bouc-Wen ({sig(va[('bw', '28hz')])} mm). The twin is a Bouc-Wen actuator with a "
+        "structural mode, so Bouc-Wen has the right structure there by construction.",
+        f"On the measured P-885 stack PI plain ({sig(va[('pi-plain', 'p885')])} um held-out, "
+        f"{sig(tr[('pi-plain', 'p885')])} um in training, 11 parameters) is "
+        f"{versus(va[('pi-plain', 'p885')], va[('bw', 'p885')])} Bouc-Wen with its offset "
+        f"({sig(va[('bw', 'p885')])} um, {sig(tr[('bw', 'p885')])} um in training); the "
+        "asymmetric and rate-dependent forms fit the training run closer "
+        f"({sig(tr[('pi-asym', 'p885')])} and {sig(tr[('pi-rate', 'p885')])} um) but do worse "
+        f"held-out ({sig(va[('pi-asym', 'p885')])} and {sig(va[('pi-rate', 'p885')])} um)"
+        + (", and the RBF network, run free, is nowhere the best held-out model "
+           f"(P-885: {sig(va[('rbf', 'p885')])} um)." if rbf_never else "."),
+        f"So the dissertation's preference for Bouc-Wen over operator models is borne out "
+        f"{'on ' + ' and '.join(wins) if wins else 'nowhere'} (held-out, CMA-ES)"
+        + (f", not {' or '.join(loses)}" if loses else "")
+        + "; on the real stack a plain PI model, whose best weights are one non-negative "
+        "least-squares solve instead of a search, predicts the held-out record "
+        + {"as good as": "as well as"}.get(v := versus(va[("pi-plain", "p885")],
+                                                        va[("bw", "p885")]), v) + " Bouc-Wen.",
+        "The optimizer matters more than the model here: CMA-ES ends at the exact optimum "
+        f"to rounding on the {' and '.join(label[m].split(' ', 1)[1] for m in exact)} "
+        "forms, while the dissertation's MSGA ends up to "
+        f"{sig(ms_worst['p885'])} um above it on the stack ({sig(ms_worst['1hz'])} mm on the "
+        "twin at 1 Hz); on the stack its median curve is still descending at the end of the "
+        "budget (the suite's convergence plots), from a coefficient box (`coefficient_bound`) "
+        "whose random points are orders of magnitude off: its PI numbers measure the search, "
+        "not the model.",
     ])
     return f
