@@ -16,6 +16,7 @@ MODELS = [("bw", "Bouc-Wen"), ("rbf", "RBF 3-7-1"), ("pi-plain", "PI plain"),
 SETS = [("1hz", "twin, fitted at 1 Hz", "mm"), ("28hz", "twin, fitted at 28 Hz", "mm"),
         ("p885", "P-885 stack", "um")]
 OPTIMIZERS = ["MSGA", "CMA-ES"]
+TIE = 0.05  # held-out errors this close (relative) read "as good as"
 
 
 def metric_names(model, unit):
@@ -100,8 +101,8 @@ def render(d):
     label = dict(MODELS)
 
     def versus(a, b):
-        """How held-out error `a` compares with `b`: within 5 % counts as a tie."""
-        if abs(a - b) <= 0.05 * b:
+        """How held-out error `a` compares with `b`: within TIE of it counts as a tie."""
+        if abs(a - b) <= TIE * b:
             return "as good as"
         return f"{a / b:.1f} times worse than" if a > b else f"{b / a:.1f} times better than"
 
@@ -112,7 +113,7 @@ def render(d):
     rbf_never = all(va[("rbf", k)] > min(va[(m, k)] for m in ["bw"] + pis) for k, _, _ in SETS)
     b1, b28 = best_pi["1hz"], best_pi["28hz"]
     where = {"1hz": "the twin at 1 Hz", "28hz": "the twin at 28 Hz", "p885": "the P-885 stack"}
-    wins = [where[k] for k, _, _ in SETS if va[("bw", k)] < 0.95 * va[(best_pi[k], k)]]
+    wins = [where[k] for k, _, _ in SETS if va[("bw", k)] < (1 - TIE) * va[(best_pi[k], k)]]
     loses = [where[k] for k, _, _ in SETS if where[k] not in wins]
     f["models-claims"] = " ".join([
         "Held-out errors with CMA-ES (medians): on the twin at 1 Hz the best PI form "
