@@ -24,7 +24,8 @@ SUMMARY_FORMAT_VERSION = 1
 # The objective kinds' function ids (src/report/ioh.rs, FUNCTION_IDS).
 # An independent copy on purpose: a renumbering in Rust alone fails this check.
 FUNCTION_IDS = {"sphere": 25, "griewank": 26, "schwefel": 27, "rastrigin": 28,
-                "rosenbrock": 29, "ackley": 30, "bouc-wen": 101, "rbf": 102}
+                "rosenbrock": 29, "ackley": 30, "bouc-wen": 101, "rbf": 102,
+                "pi": 103, "preisach": 104}
 
 
 def fail(msg, code=2):

@@ -66,7 +66,7 @@ impl FitData {
         }
     }
 
-    fn unit_suffix(&self) -> String {
+    pub(super) fn unit_suffix(&self) -> String {
         if self.unit.is_empty() {
             String::new()
         } else {
@@ -91,7 +91,7 @@ pub trait FitView {
 }
 
 /// Units of the first training record, and a quotient `out/in` of them ("" if both are).
-fn units_of(rec: &Recording) -> (Units, String) {
+pub(super) fn units_of(rec: &Recording) -> (Units, String) {
     let [t, u, y] = rec.units.clone();
     let ratio = if u.is_empty() && y.is_empty() {
         String::new()
@@ -167,7 +167,7 @@ impl Datasets {
     }
 
     /// Training samples in all.
-    fn train_samples(&self) -> usize {
+    pub(super) fn train_samples(&self) -> usize {
         self.trains().iter().map(|d| d.u.len()).sum()
     }
 
@@ -179,11 +179,11 @@ impl Datasets {
             .zip(&self.scaled)
     }
 
-    fn get(&self, set: usize) -> Option<&FitData> {
+    pub(super) fn get(&self, set: usize) -> Option<&FitData> {
         self.scaled.get(set)
     }
 
-    fn recordings(&self) -> Vec<(&str, &Recording)> {
+    pub(super) fn recordings(&self) -> Vec<(&str, &Recording)> {
         self.recordings
             .iter()
             .map(|(l, r)| (l.as_str(), r))
@@ -209,7 +209,7 @@ impl Datasets {
 
 /// Replaces non-finite model outputs by the last finite one (0 before any), so metrics and
 /// plots of absurd parameters stay finite; costs penalise such parameters on their own.
-fn hold_finite(out: &mut [f64]) {
+pub(super) fn hold_finite(out: &mut [f64]) {
     let mut last = 0.0;
     for v in out {
         if v.is_finite() {
@@ -221,7 +221,7 @@ fn hold_finite(out: &mut [f64]) {
 }
 
 /// Max |e| and RMS of `model - measured` from `start`, in physical units.
-fn errors(meas: &[f64], model: &[f64], start: usize, scale: f64) -> (f64, f64) {
+pub(super) fn errors(meas: &[f64], model: &[f64], start: usize, scale: f64) -> (f64, f64) {
     let e = rbf::fit_errors(meas, model, start);
     (e.max_abs * scale, e.rms * scale)
 }

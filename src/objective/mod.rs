@@ -3,6 +3,7 @@
 
 pub mod functions;
 pub mod hysteresis;
+pub mod operator;
 pub mod source;
 
 use crate::base::limits::{MAX_DIM, MAX_MAGNITUDE};

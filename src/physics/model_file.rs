@@ -15,12 +15,16 @@
 //! - `structure`: `diagnose`'s Bouc-Wen with extensions, rebuilt from its effects, forms,
 //!   placement and data context, run from its shape vector (unit-free, bounds given) and
 //!   its linear coefficients (the physical parameters are listed for the reader).
+//! - `pi`: a Prandtl-Ishlinskii model (plain, asymmetric or rate-dependent; see
+//!   [`super::prandtl_ishlinskii`]), run from its `pi` field (thresholds, weights, rate
+//!   weights, polynomial, offsets in physical units; the parameters list repeats them).
 //!
 //! Reading refuses what it cannot run: another format or version, an unknown kind, a
 //! missing or non-finite value, each named with the file and the field.
 
 use super::bouc_wen::{self, BoucWenParams, SimStatus};
 use super::bouc_wen_fast;
+use super::prandtl_ishlinskii::{PiForm, PiModel, check_thresholds};
 use super::rbf::Narx;
 use super::structure::{self, Context, Effect, Hold, Placement, Structure};
 use crate::base::atomic_write;
@@ -35,12 +39,15 @@ pub const VERSION: u32 = 1;
 /// A parameter within this share of its search range from a bound is flagged as at it.
 pub const BOUND_TOLERANCE: f64 = 1e-2;
 
+/// The model kinds a file may hold.
+pub const KINDS: [&str; 4] = ["bouc-wen", "rbf", "structure", "pi"];
+
 /// A fitted model, as stored.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ModelFile {
     pub format: String,
     pub version: u32,
-    /// `bouc-wen`, `rbf` or `structure`.
+    /// `bouc-wen`, `rbf`, `structure` or `pi`.
     pub kind: String,
     /// The model's equation in words, for the reader.
     pub model: String,
@@ -72,6 +79,9 @@ pub struct ModelFile {
     /// The structure model (kind `structure`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub structure: Option<StructureSpec>,
+    /// The Prandtl-Ishlinskii model in physical units (kind `pi`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pi: Option<PiModel>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -305,6 +315,7 @@ impl ModelFile {
             records: Vec::new(),
             network: None,
             structure: None,
+            pi: None,
         }
     }
 
@@ -395,11 +406,14 @@ impl ModelFile {
             }
         }
         let kind = value.get("kind").and_then(|v| v.as_str()).unwrap_or("");
-        if !["bouc-wen", "rbf", "structure"].contains(&kind) {
+        if !KINDS.contains(&kind) {
             return Err(bad(
                 path,
                 "kind",
-                format!("\"{kind}\" is not a model kind; valid: bouc-wen, rbf, structure"),
+                format!(
+                    "\"{kind}\" is not a model kind; valid: {}",
+                    KINDS.join(", ")
+                ),
             ));
         }
         let m: ModelFile = serde_json::from_value(value).map_err(|e| bad(path, "field", e))?;
@@ -431,6 +445,9 @@ impl ModelFile {
             "rbf" => {
                 self.network_checked(path)?;
             }
+            "pi" => {
+                self.pi_checked(path)?;
+            }
             "structure" => {
                 self.structure_checked(path, None)?;
                 for r in &self.records {
@@ -441,7 +458,7 @@ impl ModelFile {
                 return Err(bad(
                     path,
                     "kind",
-                    format!("\"{k}\" is not a model kind; valid: bouc-wen, rbf, structure"),
+                    format!("\"{k}\" is not a model kind; valid: {}", KINDS.join(", ")),
                 ));
             }
         }
@@ -513,6 +530,45 @@ impl ModelFile {
                 format!("\"{s}\"; valid for bouc-wen: fast, accurate, explicit"),
             )),
         }
+    }
+
+    /// The PI model, checked: thresholds valid, one weight per threshold, rate weights and
+    /// polynomial as its form has them, every number finite.
+    fn pi_checked(&self, path: &Path) -> Result<&PiModel> {
+        let m = self
+            .pi
+            .as_ref()
+            .ok_or_else(|| bad(path, "pi", "missing (a pi model needs its operators)"))?;
+        check_thresholds(&m.thresholds).map_err(|e| bad(path, "pi.thresholds", e))?;
+        let n = m.thresholds.len();
+        let (rates, poly) = match m.form {
+            PiForm::Plain => (0, 0),
+            PiForm::Asymmetric => (0, 2),
+            PiForm::RateDependent => (n, 0),
+        };
+        for (field, got, want) in [
+            ("weights", m.weights.len(), n),
+            ("rate_weights", m.rate_weights.len(), rates),
+            ("poly", m.poly.len(), poly),
+        ] {
+            if got != want {
+                return Err(bad(
+                    path,
+                    &format!("pi.{field}"),
+                    format!(
+                        "{got} values; expected {want} for the {} form with {n} thresholds",
+                        m.form.name()
+                    ),
+                ));
+            }
+        }
+        let values = m.weights.iter().chain(&m.rate_weights).chain(&m.poly);
+        for (i, v) in values.enumerate() {
+            finite(path, &format!("pi coefficient {i}"), *v)?;
+        }
+        finite(path, "pi.offset", m.offset)?;
+        finite(path, "pi.input_offset", m.input_offset)?;
+        Ok(m)
     }
 
     fn network_checked(&self, path: &Path) -> Result<&Network> {
@@ -748,6 +804,16 @@ impl ModelFile {
                     )));
                 }
                 network_free_run(net, u, input.y, &mut out);
+            }
+            "pi" => {
+                if record.is_some() {
+                    return Err(bad(
+                        path,
+                        "records",
+                        "a pi model has no per-record state (leave out --record)",
+                    ));
+                }
+                out = self.pi_checked(path)?.simulate(u, input.dt);
             }
             _ => {
                 let (st, theta, coef) = self.structure_checked(path, record)?;

@@ -7,6 +7,7 @@ use crate::data::recording::{Delimiter, ReadOptions, Recording};
 use crate::harness::OptimizerConfig;
 use crate::objective::functions::{Function, TestFunction};
 use crate::objective::hysteresis::{BoucWenFit, BoucWenScheme, RbfFit};
+use crate::objective::operator::{OperatorFit, OperatorSearch};
 use crate::objective::source::{SimOptions, Source};
 use crate::objective::{Bounds, Objective};
 use crate::optimizer::ga::GaConfig;
@@ -16,6 +17,7 @@ use crate::optimizer::nelder_mead::NelderMeadConfig;
 use crate::optimizer::operators::Mutation;
 use crate::optimizer::pso::PsoConfig;
 use crate::optimizer::random_search::RandomSearchConfig;
+use crate::physics::prandtl_ishlinskii::PiForm;
 use crate::physics::rbf::{Mode, Narx, RbfNet};
 use std::path::Path;
 use std::sync::Arc;
@@ -455,6 +457,55 @@ fn build_bouc_wen(p: &Params) -> Result<Arc<dyn Objective>, Error> {
     Ok(Arc::new(fit))
 }
 
+const PI_PARAMS: &[Spec] = recording_params![
+    Spec {
+        name: "form",
+        kind: Kind::Choice(&["plain", "asymmetric", "rate-dependent"]),
+        default: D::Str("plain"),
+        help: "plain = weighted plays; asymmetric = plus a2 u^2 + a3 u^3; rate-dependent = each weight grows with |du/dt| (w_i + rho_i |du/dt|)",
+    },
+    Spec {
+        name: "operators",
+        kind: size(1, 200),
+        default: D::Int(10),
+        help: "play operators, the first (threshold 0) the linear term; thresholds r_i = i/n x half the training input's range",
+    },
+    Spec {
+        name: "search",
+        kind: Kind::Choice(&["weights", "all"]),
+        default: D::Str("weights"),
+        help: "weights = thresholds fixed uniform, coefficients searched (a convex problem: its exact least-squares optimum is known and reported); all = thresholds too (n increments in [0.05, 1], r_i = r_max x cumulative share: ordered by construction; no known optimum)",
+    },
+    Spec {
+        name: "coefficient_bound",
+        kind: Kind::Float {
+            min: f64::MIN_POSITIVE,
+            max: MAX_MAGNITUDE
+        },
+        default: D::Float(4.0),
+        help: "search box of each coefficient: |coefficient| x its column's RMS <= this, in units of the normalised output (non-negative weights from 0); the weights search refuses a box that misses the optimum",
+    },
+];
+
+fn build_pi(p: &Params) -> Result<Arc<dyn Objective>, Error> {
+    let (train, validate) = recordings(p)?;
+    let form = PiForm::parse(p.str("form")).expect("a choice of the spec");
+    let search = match p.str("search") {
+        "all" => OperatorSearch::All,
+        _ => OperatorSearch::Weights,
+    };
+    let fit = OperatorFit::pi(
+        &train,
+        &validate,
+        form,
+        p.usize("operators"),
+        search,
+        p.float("coefficient_bound"),
+    )
+    .map_err(|e| p.entry_error(e))?;
+    Ok(Arc::new(fit))
+}
+
 /// The objective kinds that fit a model to recordings (those with a `recording`), the
 /// models `optbench fit --model` accepts.
 pub fn fitting_kind_names() -> Vec<&'static str> {
@@ -491,6 +542,12 @@ pub fn objective_kinds() -> Vec<ObjectiveKind> {
             help: "fit a Gaussian RBF NARX network (seed 3.2, 3-7-1 = 35 parameters) to a recording; reports one-step and free-run errors",
             params: RBF_PARAMS,
             build: build_rbf,
+        },
+        ObjectiveKind {
+            name: "pi",
+            help: "fit a Prandtl-Ishlinskii model (plain, asymmetric or rate-dependent; weighted play operators) to a recording; search = weights has a known exact optimum",
+            params: PI_PARAMS,
+            build: build_pi,
         },
     ]
 }

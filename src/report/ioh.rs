@@ -59,6 +59,9 @@ pub const FUNCTION_IDS: &[(&str, u16)] = &[
     ("ackley", 30),
     ("bouc-wen", 101),
     ("rbf", 102),
+    ("pi", 103),
+    // Reserved for the Preisach fit of issue 19.
+    ("preisach", 104),
 ];
 
 /// The function id of objective kind `kind`.

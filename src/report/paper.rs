@@ -513,7 +513,10 @@ fn paper_cell(
     let c = o.cells.iter().find(|c| c.optimizer == r.optimizer)?;
     match r.metric.as_ref().or(default_metric) {
         Some(m) => {
-            let ms = c.metrics.iter().find(|x| &x.name == m)?;
+            let ms = match m.as_str() {
+                super::analysis::FIT_TIME => &c.fit_time,
+                _ => c.metrics.iter().find(|x| &x.name == m)?,
+            };
             Some((ms.stats.median, ms.median_ci))
         }
         None => Some((c.stats.median, c.median_ci)),

@@ -46,7 +46,7 @@ use toml::Spanned;
 pub mod paper;
 pub mod text;
 
-pub use paper::{CellRef, PaperRow, PaperTable};
+pub use paper::{CellRef, FIT_TIME, PaperRow, PaperTable};
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -437,7 +437,7 @@ fn check_table(
                         .map(|m| m.name)
                         .collect()
                 });
-                if !names.contains(m) {
+                if m != FIT_TIME && !names.contains(m) {
                     return Err(format!(
                         "cell `{c}`: objective `{}` reports no metric `{m}`; it reports: {}",
                         r.objective,

@@ -5,6 +5,10 @@ use crate::base::SafeName;
 use crate::base::name::RESERVED_TABLE_IDS;
 use serde::Deserialize;
 
+/// The pseudo-metric a cell names (`objective:optimizer@fit time [s]`) to show the wall
+/// seconds of a trial: median and interval over trials, like a metric.
+pub const FIT_TIME: &str = "fit time [s]";
+
 /// A table laid out like one in a paper, with its published numbers beside ours:
 /// rows x columns of cells `objective:optimizer` (or `objective:optimizer@metric`).
 ///
@@ -13,6 +17,7 @@ use serde::Deserialize;
 /// id = "table3.2"
 /// title = "Table 3.2: RMS error of Bouc-Wen fits [mm]"
 /// value = "train RMSE [mm]"          # default for cells without @metric; omit: the value
+///                                    # (`@fit time [s]`: wall seconds per trial)
 /// columns = ["GA", "MSGA"]
 /// rows = [
 ///   { label = "1 Hz", cells = ["bw-1hz:GA", "bw-1hz:MSGA"], seed = [0.0145, 0.0066] },
