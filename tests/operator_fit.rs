@@ -131,6 +131,71 @@ fn residual_rmse(path: &Path) -> f64 {
     (e.iter().map(|v| v * v).sum::<f64>() / e.len() as f64).sqrt()
 }
 
+/// `fit --model preisach` writes model.json of kind preisach that `simulate --model`
+/// runs to the fit's validation RMSE (1e-9 relative); its known optimum is reported.
+#[test]
+fn a_fitted_preisach_model_reproduces_its_validation_rmse() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_csv(&d.join("train.csv"), &record("train", 1.0, 800));
+    write_csv(&d.join("validate.csv"), &record("validate", 0.6, 600));
+    let text = ok(&optbench(
+        &[
+            "fit",
+            "--model",
+            "preisach",
+            "--train",
+            "train.csv",
+            "--validate",
+            "validate.csv",
+            "--columns",
+            "t_s,u_V,y_mm",
+            "--model-param",
+            "levels=4",
+            "--optimizer",
+            "cmaes",
+            "--budget",
+            "3000",
+            "--out",
+            "fit",
+            "-q",
+        ],
+        d,
+    ));
+    assert!(text.contains("model.json"), "{text}");
+    let m = read_json(&d.join("fit/model.json"));
+    assert_eq!(m["kind"], "preisach");
+    assert_eq!(m["preisach"]["weights"].as_array().unwrap().len(), 10);
+    let metrics = read_json(&d.join("fit/fit.json"))["metrics"].clone();
+    let above = metrics
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["name"] == "train RMSE above the optimum [mm]")
+        .expect("the optimum is known")["value"]
+        .as_f64()
+        .unwrap();
+    // Ten coefficients, 3000 evaluations: CMA-ES reaches the optimum's neighbourhood.
+    assert!((0.0..1e-3).contains(&above), "{above}");
+    let want = fit_metric(&d.join("fit"), "validate RMSE [mm]");
+    ok(&optbench(
+        &[
+            "simulate",
+            "--model",
+            "fit/model.json",
+            "--input",
+            "validate.csv",
+            "--columns",
+            "t_s,u_V,y_mm",
+            "--out",
+            "sim",
+        ],
+        d,
+    ));
+    let got = residual_rmse(&d.join("sim/validate_predicted.csv"));
+    assert!((got - want).abs() <= 1e-9 * want, "{got} vs {want}");
+}
+
 /// Each form and both searches: `fit --model pi` writes model.json of kind pi, and
 /// `simulate --model` on the validation file reproduces the fit's validation RMSE to 1e-9
 /// relative.

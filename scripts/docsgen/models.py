@@ -12,7 +12,8 @@ FRAGMENTS = ["models-setup", "models-tables", "models-optimum", "models-claims"]
 VOLATILE = [r'"wall_s": [0-9.e+-]+']
 
 MODELS = [("bw", "Bouc-Wen"), ("rbf", "RBF 3-7-1"), ("pi-plain", "PI plain"),
-          ("pi-asym", "PI asymmetric"), ("pi-rate", "PI rate-dependent")]
+          ("pi-asym", "PI asymmetric"), ("pi-rate", "PI rate-dependent"),
+          ("preisach", "Preisach 10 levels")]
 SETS = [("1hz", "twin, fitted at 1 Hz", "mm"), ("28hz", "twin, fitted at 28 Hz", "mm"),
         ("p885", "P-885 stack", "um")]
 OPTIMIZERS = ["MSGA", "CMA-ES"]
@@ -89,14 +90,14 @@ def render(d):
             rows.append([f"{label}, {where}",
                          *[shown(f"{model}-{key}:{o}", f"train RMSE above the optimum [{unit}]")
                            for o in OPTIMIZERS]])
-    f["models-optimum"] = markdown_table(["PI fit (RMSE above the optimum, mm or um)",
+    f["models-optimum"] = markdown_table(["operator fit (RMSE above the optimum, mm or um)",
                                           *OPTIMIZERS], rows)
 
     tr = {(m, k): med(f"{m}-{k}:CMA-ES", metric_names(m, u)[0]) for m, _ in MODELS
           for k, _, u in SETS}
     va = {(m, k): med(f"{m}-{k}:CMA-ES", metric_names(m, u)[1]) for m, _ in MODELS
           for k, _, u in SETS}
-    pis = [m for m, _ in MODELS[2:]]
+    pis = [m for m, _ in MODELS if m.startswith("pi-")]
     best_pi = {k: min(pis, key=lambda m: va[(m, k)]) for k, _, _ in SETS}
     label = dict(MODELS)
 
@@ -138,6 +139,15 @@ def render(d):
         "least-squares solve instead of a search, predicts the held-out record "
         + {"as good as": "as well as"}.get(v := versus(va[("pi-plain", "p885")],
                                                         va[("bw", "p885")]), v) + " Bouc-Wen.",
+        "A Preisach model on a 10-level relay grid (56 coefficients, CMA-ES) predicts the "
+        f"held-out records with {sig(va[('preisach', '1hz')])} mm (twin, 1 Hz), "
+        f"{sig(va[('preisach', '28hz')])} mm (28 Hz) and {sig(va[('preisach', 'p885')])} um "
+        f"(stack): {versus(va[('preisach', 'p885')], va[(best_pi['p885'], 'p885')])} the best "
+        "PI form on the stack. Its output is a staircase that moves only where the input "
+        "crosses one of its 10 thresholds, so the grid caps its accuracy (chapter 5); CMA-ES "
+        "ends "
+        f"{sig(med('preisach-p885:CMA-ES', 'train RMSE above the optimum [um]'))} um above its "
+        "exact optimum on the stack.",
         "The optimizer matters more than the model here: CMA-ES ends at the exact optimum "
         f"to rounding on the {' and '.join(label[m].split(' ', 1)[1] for m in exact)} "
         "forms, while the dissertation's MSGA ends up to "

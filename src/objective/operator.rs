@@ -28,6 +28,7 @@ use crate::data::recording::Recording;
 use crate::physics::bouc_wen::cost_cap;
 use crate::physics::model_file::{Integration, ModelFile, Normalisation, Param, Units};
 use crate::physics::prandtl_ishlinskii::{LinearInWeights, PiBasis, PiForm, PiModel};
+use crate::physics::preisach::PreisachGrid;
 
 /// A shape an operator fit searches the weights of: its [`LinearInWeights`] columns, and
 /// the model file of a set of weights. Implement it (and build the fit with
@@ -169,6 +170,19 @@ impl OperatorFit {
             ));
         }
         Self::build(data, Box::new(PiBasis { form, thresholds }), shape, bound)
+    }
+
+    /// A Preisach model on `levels` cells over the normalised training input's range.
+    pub fn preisach(
+        train: &[Recording],
+        validate: &[(String, Recording)],
+        levels: usize,
+        bound: f64,
+    ) -> Result<Self> {
+        let data = Datasets::new(train, validate, true)?;
+        let u: Vec<f64> = data.trains().iter().flat_map(|d| d.u.clone()).collect();
+        let grid = PreisachGrid::for_input(levels, &u).map_err(Error::Input)?;
+        Self::build(data, Box::new(grid), None, bound)
     }
 
     fn build(
@@ -543,6 +557,61 @@ impl OperatorBasis for PiBasis {
             params,
         );
         m.pi = Some(phys);
+        m
+    }
+}
+
+impl OperatorBasis for PreisachGrid {
+    fn kind(&self) -> &'static str {
+        "preisach"
+    }
+
+    fn label(&self) -> String {
+        format!("Preisach ({} levels)", self.levels())
+    }
+
+    /// With `u = us u'` and `y = ys y'` the grid's range scales by `us` (the relays switch
+    /// at the same physical inputs), weights and offset by `ys`.
+    fn model_file(&self, theta: &[f64], scales: (f64, f64), units: Units, dt: f64) -> ModelFile {
+        let (us, ys) = scales;
+        let grid = PreisachGrid::new(self.levels(), self.u_min() * us, self.u_max() * us)
+            .expect("a valid grid scaled by a positive number stays valid");
+        let phys: Vec<f64> = theta.iter().map(|v| v * ys).collect();
+        let model = grid
+            .model(&phys)
+            .expect("one coefficient per relay and the offset");
+        let yu = units.output.clone();
+        let n = self.levels();
+        let mut params: Vec<Param> = Vec::new();
+        for i in 0..n {
+            for j in 0..=i {
+                let w = model.weights[PreisachGrid::index(i, j)];
+                params.push(Param::new(format!("mu[{i},{j}]"), w, yu.clone()));
+            }
+        }
+        params.push(Param::new("d0", model.offset, yu.clone()));
+        let mut m = ModelFile::new(
+            "preisach",
+            &format!(
+                "Preisach, {n} levels over [{}, {}] (relay (i, j) on once u >= t_i, off once u < t_j, t_k at the cell centres): y = d0 + sum mu_ij R_ij[u]",
+                grid.u_min(),
+                grid.u_max()
+            ),
+            units,
+            dt,
+            Normalisation {
+                input_scale: us,
+                output_scale: ys,
+            },
+            Integration {
+                scheme: "operator".into(),
+                substeps: None,
+                hold: None,
+            },
+            "demagnetised at the first input sample: relay (i, j) on iff t_i + t_j <= 2 u(0)",
+            params,
+        );
+        m.preisach = Some(model);
         m
     }
 }

@@ -18,6 +18,9 @@
 //! - `pi`: a Prandtl-Ishlinskii model (plain, asymmetric or rate-dependent; see
 //!   [`super::prandtl_ishlinskii`]), run from its `pi` field (thresholds, weights, rate
 //!   weights, polynomial, offsets in physical units; the parameters list repeats them).
+//! - `preisach`: a discretised Preisach model ([`super::preisach`]), run from its `preisach`
+//!   field (the grid's levels and input range, the relay weights and offset, in physical
+//!   units).
 //!
 //! Reading refuses what it cannot run: another format or version, an unknown kind, a
 //! missing or non-finite value, each named with the file and the field.
@@ -25,6 +28,7 @@
 use super::bouc_wen::{self, BoucWenParams, SimStatus};
 use super::bouc_wen_fast;
 use super::prandtl_ishlinskii::{PiForm, PiModel, check_thresholds};
+use super::preisach::Preisach;
 use super::rbf::Narx;
 use super::structure::{self, Context, Effect, Hold, Placement, Structure};
 use crate::base::atomic_write;
@@ -40,7 +44,7 @@ pub const VERSION: u32 = 1;
 pub const BOUND_TOLERANCE: f64 = 1e-2;
 
 /// The model kinds a file may hold.
-pub const KINDS: [&str; 4] = ["bouc-wen", "rbf", "structure", "pi"];
+pub const KINDS: [&str; 5] = ["bouc-wen", "rbf", "structure", "pi", "preisach"];
 
 /// A fitted model, as stored.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -82,6 +86,10 @@ pub struct ModelFile {
     /// The Prandtl-Ishlinskii model in physical units (kind `pi`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pi: Option<PiModel>,
+    /// The Preisach model in physical units (kind `preisach`), checked against its grid
+    /// when read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preisach: Option<Preisach>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -316,6 +324,7 @@ impl ModelFile {
             network: None,
             structure: None,
             pi: None,
+            preisach: None,
         }
     }
 
@@ -448,6 +457,9 @@ impl ModelFile {
             "pi" => {
                 self.pi_checked(path)?;
             }
+            "preisach" => {
+                self.preisach_checked(path)?;
+            }
             "structure" => {
                 self.structure_checked(path, None)?;
                 for r in &self.records {
@@ -534,6 +546,18 @@ impl ModelFile {
 
     /// The PI model, checked: thresholds valid, one weight per threshold, rate weights and
     /// polynomial as its form has them, every number finite.
+    /// The Preisach model of a `preisach` file (its grid and weights were checked against
+    /// each other when the file was read).
+    fn preisach_checked(&self, path: &Path) -> Result<&Preisach> {
+        self.preisach.as_ref().ok_or_else(|| {
+            bad(
+                path,
+                "preisach",
+                "missing (a preisach model needs its grid and weights)",
+            )
+        })
+    }
+
     fn pi_checked(&self, path: &Path) -> Result<&PiModel> {
         let m = self
             .pi
@@ -814,6 +838,16 @@ impl ModelFile {
                     ));
                 }
                 out = self.pi_checked(path)?.simulate(u, input.dt);
+            }
+            "preisach" => {
+                if record.is_some() {
+                    return Err(bad(
+                        path,
+                        "records",
+                        "a preisach model has no per-record state (leave out --record)",
+                    ));
+                }
+                out = self.preisach_checked(path)?.simulate(u, input.dt);
             }
             _ => {
                 let (st, theta, coef) = self.structure_checked(path, record)?;

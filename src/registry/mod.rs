@@ -506,6 +506,36 @@ fn build_pi(p: &Params) -> Result<Arc<dyn Objective>, Error> {
     Ok(Arc::new(fit))
 }
 
+const PREISACH_PARAMS: &[Spec] = recording_params![
+    Spec {
+        name: "levels",
+        kind: size(1, 60),
+        default: D::Int(10),
+        help: "cells of the relay grid over the training input's range: levels (levels+1)/2 relay weights and an offset",
+    },
+    Spec {
+        name: "coefficient_bound",
+        kind: Kind::Float {
+            min: f64::MIN_POSITIVE,
+            max: MAX_MAGNITUDE
+        },
+        default: D::Float(4.0),
+        help: "search box of each coefficient: |coefficient| x its column's RMS <= this, in units of the normalised output (relay weights from 0); a box that misses the exact optimum is refused",
+    },
+];
+
+fn build_preisach(p: &Params) -> Result<Arc<dyn Objective>, Error> {
+    let (train, validate) = recordings(p)?;
+    let fit = OperatorFit::preisach(
+        &train,
+        &validate,
+        p.usize("levels"),
+        p.float("coefficient_bound"),
+    )
+    .map_err(|e| p.entry_error(e))?;
+    Ok(Arc::new(fit))
+}
+
 /// The objective kinds that fit a model to recordings (those with a `recording`), the
 /// models `optbench fit --model` accepts.
 pub fn fitting_kind_names() -> Vec<&'static str> {
@@ -548,6 +578,12 @@ pub fn objective_kinds() -> Vec<ObjectiveKind> {
             help: "fit a Prandtl-Ishlinskii model (plain, asymmetric or rate-dependent; weighted play operators) to a recording; search = weights has a known exact optimum",
             params: PI_PARAMS,
             build: build_pi,
+        },
+        ObjectiveKind {
+            name: "preisach",
+            help: "fit a discretised Preisach model (a triangle of relays over the input's range, weights >= 0) to a recording; the weights' exact least-squares optimum is the known optimum",
+            params: PREISACH_PARAMS,
+            build: build_preisach,
         },
     ]
 }
