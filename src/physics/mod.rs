@@ -5,6 +5,8 @@
 //!   in the input, with a free-run simulation and the fitting cost.
 //! - [`linear`]: linear blocks (structural mode, low-pass, creep chain, delay), exactly
 //!   discretised, each with a one-step API.
+//! - [`prandtl_ishlinskii`]: the Prandtl-Ishlinskii operator model (plain, asymmetric,
+//!   rate-dependent), linear in its weights, with the analytic inverse used for feedforward.
 //! - [`rbf`]: the Gaussian RBF network, its NARX model (one-step and free-run) and the
 //!   back-propagation baseline.
 //! - [`restoring`]: an oscillator whose restoring force is hysteretic (the hysteresis
@@ -20,6 +22,7 @@ pub mod fastmath;
 pub mod fixtures;
 pub mod linear;
 pub mod model_file;
+pub mod prandtl_ishlinskii;
 pub mod rbf;
 pub mod rbf_fast;
 pub mod restoring;
