@@ -7,7 +7,8 @@ use std::path::PathBuf;
 pub struct ControlArgs {
     /// Controller: imc-rbf (the dissertation's IMC with two RBF networks), pid (eq. 4.9), or
     /// feedforward by an inverted hysteresis model identified on the --model-twin:
-    /// ff-bw (Bouc-Wen, numerical inverse), alone or plus the PID (ff-bw+pid).
+    /// ff-pi (Prandtl-Ishlinskii, analytic inverse), ff-bw (Bouc-Wen, numerical inverse),
+    /// alone or plus an integral-action PID on the error (ff-pi+pid, ff-bw+pid).
     #[arg(long, value_parser = crate::control::run::CONTROLLER_KINDS)]
     pub controller: String,
     /// Reference in mm: sweep-1-2hz, sweep-1-3hz, sweep-1-4hz, sweep-1-10hz (the dissertation's),
@@ -26,8 +27,9 @@ pub struct ControlArgs {
     pub model_twin: Option<String>,
     /// Controller parameter, repeatable: --controller-param ki=0.4 --controller-param learning_rate=0.05
     /// (pid: kp, ki, kd; imc-rbf: learning_rate, momentum, error_scale, sensitivity,
-    /// model_mode, model_budget, ...; ff-bw: model_budget, model_signal, model_duration, and
-    /// with +pid kp, ki, kd; a wrong key lists the valid ones).
+    /// model_mode, model_budget, ...; ff-pi: operators, ff-bw: model_budget, both
+    /// model_signal, model_duration, and with +pid kp, ki, kd (default 0, 0.1, 0); a wrong
+    /// key lists the valid ones).
     #[arg(long = "controller-param", alias = "param", value_name = "KEY=VALUE")]
     pub params: Vec<String>,
     /// Seconds at the start counted as the transient (figures and the steady RMSE).

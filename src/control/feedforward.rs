@@ -3,6 +3,9 @@
 //! incremental PID of eq. 4.9 on the tracking error added (`u = Γ̂⁻¹[y_d] + PID(e)`, the
 //! common practice). The dissertation names this the main alternative to its feedback IMC.
 //!
+//! - `ff-pi`: a plain Prandtl-Ishlinskii model at its exact least-squares optimum
+//!   ([`PiModel::fit`]), inverted analytically ([`PiModel::inverse`]): the inverse is again
+//!   a PI model, run on the reference.
 //! - `ff-bw`: a Bouc-Wen model (eq. 3.1-3.3) fitted by CMA-ES through the ordinary fitting
 //!   objective ([`BoucWenFit`]), inverted numerically sample by sample ([`BoucWenInverse`]).
 //!
@@ -24,6 +27,7 @@ use crate::objective::Objective;
 use crate::objective::hysteresis::{BoucWenFit, BoucWenScheme, FitData, FitView};
 use crate::optimizer::cmaes::CmaesConfig;
 use crate::physics::bouc_wen::{BoucWenKernel, BoucWenParams, BoucWenState};
+use crate::physics::prandtl_ishlinskii::{PiForm, PiModel, PiStepper};
 use crate::pipeline::runner::{TrialSpec, run_trial};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -37,6 +41,9 @@ pub const BW_BOUNDS: (f64, f64) = (0.0, 4.0);
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum InverseModelSpec {
+    /// Plain PI with `operators` play operators (the linear term included), thresholds
+    /// uniform over half the record's command range.
+    Pi { operators: usize },
     /// Bouc-Wen fitted by CMA-ES with `budget` evaluations.
     BoucWen { budget: u64 },
 }
@@ -61,6 +68,9 @@ impl InverseModelSpec {
     /// The model and its fit, for reports.
     pub fn describe(&self) -> String {
         match self {
+            InverseModelSpec::Pi { operators } => {
+                format!("plain Prandtl-Ishlinskii ({operators} operators, least-squares optimum, analytic inverse)")
+            }
             InverseModelSpec::BoucWen { budget } => {
                 format!("Bouc-Wen (CMA-ES, {budget} evaluations, numerical inverse)")
             }
@@ -71,12 +81,14 @@ impl InverseModelSpec {
     pub fn set_budget(&mut self, b: u64) {
         match self {
             InverseModelSpec::BoucWen { budget } => *budget = b,
+            InverseModelSpec::Pi { .. } => {}
         }
     }
 
     /// `pi` or `bw`, as in the controller kinds `ff-pi` and `ff-bw`.
     pub fn short(&self) -> &'static str {
         match self {
+            InverseModelSpec::Pi { .. } => "pi",
             InverseModelSpec::BoucWen { .. } => "bw",
         }
     }
@@ -124,6 +136,7 @@ impl InverseFitConfig {
         let noise_seed: u64 = seed.rng(1).random();
         let rec = self.recording(noise_seed)?;
         match &self.model {
+            InverseModelSpec::Pi { operators } => fit_pi(&rec, *operators),
             InverseModelSpec::BoucWen { budget } => fit_bouc_wen(&rec, *budget, seed),
         }
     }
@@ -144,6 +157,8 @@ pub struct FittedInverse {
 /// The model a feedforward inverts.
 #[derive(Debug, Clone)]
 pub enum InverseModel {
+    /// The fitted model and its analytic inverse.
+    Pi { model: PiModel, inverse: PiModel },
     BoucWen(BoucWenModel),
 }
 
@@ -151,6 +166,10 @@ impl InverseModel {
     /// What was fitted and how, for reports.
     pub fn describe(&self, evaluations: u64) -> String {
         match self {
+            InverseModel::Pi { model, .. } => format!(
+                "plain Prandtl-Ishlinskii ({} operators) at its least-squares optimum, inverted analytically",
+                model.thresholds.len()
+            ),
             InverseModel::BoucWen(_) => {
                 format!("Bouc-Wen by CMA-ES ({evaluations} evaluations), inverted numerically")
             }
@@ -181,6 +200,38 @@ impl BoucWenModel {
 fn rms_diff(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().max(1) as f64;
     (a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / n).sqrt()
+}
+
+/// Default play operators of `ff-pi` (the linear term included).
+pub const DEFAULT_PI_OPERATORS: usize = 10;
+
+/// The sample interval of the identification records and the loop (s).
+const DT: f64 = super::run::DT;
+
+/// Plain PI at its least-squares optimum on the record, and its analytic inverse. The
+/// optimum can leave the linear weight at 0 (no inverse): that is refused with the cure.
+fn fit_pi(rec: &Recording, operators: usize) -> Result<FittedInverse> {
+    let thresholds = PiModel::uniform_thresholds(operators, &rec.u);
+    let model = PiModel::fit(PiForm::Plain, thresholds, &rec.u, &rec.y, DT)
+        .map_err(|e| Error::Input(format!("inverse model: PI fit: {e}")))?;
+    let inverse = model.inverse().map_err(|e| {
+        Error::Input(format!(
+            "inverse model: the fitted PI model ({operators} operators) has no inverse: {e}; \
+             try another `operators` count or identification signal"
+        ))
+    })?;
+    let free = model.simulate(&rec.u, DT);
+    let mut params = vec![("offset [mm]".to_string(), model.offset)];
+    for (i, (r, w)) in model.thresholds.iter().zip(&model.weights).enumerate() {
+        params.push((format!("r_{i} [V]"), *r));
+        params.push((format!("w_{i} [mm/V]"), *w));
+    }
+    Ok(FittedInverse {
+        free_run_rmse: rms_diff(&rec.y, &free),
+        evaluations: 0,
+        params,
+        model: InverseModel::Pi { model, inverse },
+    })
 }
 
 /// Bouc-Wen with an offset on the normalised record, by CMA-ES through the harness.
@@ -361,6 +412,11 @@ pub struct Feedforward {
 
 #[derive(Debug, Clone)]
 enum InverseRunner {
+    /// The forward model only tells the inverse where the plant started.
+    Pi {
+        forward: PiStepper,
+        inverse: PiStepper,
+    },
     BoucWen(BoucWenInverse),
 }
 
@@ -369,6 +425,10 @@ impl Feedforward {
     /// with the incremental PID `pid` (at rest, command 0) added when given.
     pub fn new(model: &InverseModel, pid: Option<PidGains>, u_limit: f64) -> Result<Self> {
         let inverse = match model {
+            InverseModel::Pi { model, inverse } => InverseRunner::Pi {
+                forward: model.stepper(DT),
+                inverse: inverse.stepper(DT),
+            },
             InverseModel::BoucWen(m) => InverseRunner::BoucWen(BoucWenInverse::new(m, u_limit)),
         };
         Ok(Feedforward {
@@ -380,6 +440,10 @@ impl Feedforward {
     /// The model saw the command applied before the loop starts.
     pub fn start(&mut self, u0: f64) {
         match &mut self.inverse {
+            // Γ⁻¹[Γ[u0]] = u0: the inverse's operators now hold the plant's state.
+            InverseRunner::Pi { forward, inverse } => {
+                inverse.step(forward.step(u0));
+            }
             InverseRunner::BoucWen(b) => b.start(u0),
         }
     }
@@ -387,6 +451,7 @@ impl Feedforward {
     /// `u(k)` from the next reference sample `y_d(k+1)` and the error `e(k)`.
     pub fn command(&mut self, yd_next: f64, e: f64) -> f64 {
         let ff = match &mut self.inverse {
+            InverseRunner::Pi { inverse, .. } => inverse.step(yd_next),
             InverseRunner::BoucWen(b) => b.command(yd_next),
         };
         ff + self.pid.as_mut().map_or(0.0, |p| p.step(e))

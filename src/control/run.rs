@@ -4,7 +4,7 @@
 
 use super::closed_loop::{Controller, Guard, LoopRun, run_loop};
 use super::feedforward::{
-    DEFAULT_BW_BUDGET, FF_PID, Feedforward, FittedInverse, InverseFitConfig, InverseModelSpec,
+    DEFAULT_BW_BUDGET, DEFAULT_PI_OPERATORS, FF_PID, Feedforward, FittedInverse, InverseFitConfig, InverseModelSpec,
 };
 use super::model::{FittedModel, ModelFitConfig, Sensitivity};
 use super::network::NetConfig;
@@ -24,7 +24,14 @@ pub const DT: f64 = 1e-3;
 pub const DEFAULT_TRANSIENT_S: f64 = 1.0;
 
 /// The controller kinds, as named on the command line and in suites.
-pub const CONTROLLER_KINDS: [&str; 4] = ["imc-rbf", "pid", "ff-bw", "ff-bw+pid"];
+pub const CONTROLLER_KINDS: [&str; 6] = [
+    "imc-rbf",
+    "pid",
+    "ff-pi",
+    "ff-bw",
+    "ff-pi+pid",
+    "ff-bw+pid",
+];
 
 /// Parameters of each kind: (name, meaning).
 pub const PID_KEYS: &[(&str, &str)] = &[
@@ -82,6 +89,12 @@ const IDENT_KEYS: &[(&str, &str)] = &[
     ("model_signal", "identification command signal (V)"),
     ("model_duration", "seconds of it (default 4)"),
 ];
+
+/// Parameters of `ff-pi` besides the identification's: (name, meaning).
+pub const FF_PI_KEYS: &[(&str, &str)] = &[(
+    "operators",
+    "play operators of the PI model, the linear term included (default 10)",
+)];
 
 /// Parameters of `ff-bw` besides the identification's: (name, meaning).
 pub const FF_BW_KEYS: &[(&str, &str)] = &[(
@@ -207,16 +220,24 @@ impl ControllerSpec {
                     sensitivity,
                 }))
             }
-            "ff-bw" | "ff-bw+pid" => {
+            "ff-pi" | "ff-bw" | "ff-pi+pid" | "ff-bw+pid" => {
                 let with_pid = kind.ends_with("+pid");
-                let mut fit = InverseFitConfig::new(InverseModelSpec::BoucWen {
-                    budget: DEFAULT_BW_BUDGET,
-                });
+                let (model, model_keys) = if kind.starts_with("ff-pi") {
+                    let operators = DEFAULT_PI_OPERATORS;
+                    (InverseModelSpec::Pi { operators }, FF_PI_KEYS)
+                } else {
+                    let budget = DEFAULT_BW_BUDGET;
+                    (InverseModelSpec::BoucWen { budget }, FF_BW_KEYS)
+                };
+                let mut fit = InverseFitConfig::new(model);
                 let mut pid = with_pid.then_some(FF_PID);
                 for (k, v) in params {
                     match (k.as_str(), &mut fit.model, &mut pid) {
                         ("model_budget", InverseModelSpec::BoucWen { budget }, _) => {
                             *budget = count(kind, k, v, usize::MAX)? as u64
+                        }
+                        ("operators", InverseModelSpec::Pi { operators }, _) => {
+                            *operators = count(kind, k, v, MAX_DIM)?
                         }
                         ("kp", _, Some(g)) => g.kp = number(kind, k, v)?,
                         ("ki", _, Some(g)) => g.ki = number(kind, k, v)?,
@@ -224,7 +245,7 @@ impl ControllerSpec {
                         _ => {
                             if !ident_key(kind, k, v, &mut fit.signal, &mut fit.duration)? {
                                 let pid_keys = if with_pid { PID_KEYS } else { &[] };
-                                let keys: Vec<_> = [FF_BW_KEYS, IDENT_KEYS, pid_keys].concat();
+                                let keys: Vec<_> = [model_keys, IDENT_KEYS, pid_keys].concat();
                                 return Err(unknown(kind, k, &keys));
                             }
                         }
