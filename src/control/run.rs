@@ -4,7 +4,8 @@
 
 use super::closed_loop::{Controller, Guard, LoopRun, run_loop};
 use super::feedforward::{
-    DEFAULT_BW_BUDGET, DEFAULT_PI_OPERATORS, FF_PID, Feedforward, FittedInverse, InverseFitConfig, InverseModelSpec,
+    DEFAULT_BW_BUDGET, DEFAULT_PI_OPERATORS, FF_PID, Feedforward, FittedInverse, InverseFitConfig,
+    InverseModelSpec,
 };
 use super::model::{FittedModel, ModelFitConfig, Sensitivity};
 use super::network::NetConfig;
@@ -24,14 +25,8 @@ pub const DT: f64 = 1e-3;
 pub const DEFAULT_TRANSIENT_S: f64 = 1.0;
 
 /// The controller kinds, as named on the command line and in suites.
-pub const CONTROLLER_KINDS: [&str; 6] = [
-    "imc-rbf",
-    "pid",
-    "ff-pi",
-    "ff-bw",
-    "ff-pi+pid",
-    "ff-bw+pid",
-];
+pub const CONTROLLER_KINDS: [&str; 6] =
+    ["imc-rbf", "pid", "ff-pi", "ff-bw", "ff-pi+pid", "ff-bw+pid"];
 
 /// Parameters of each kind: (name, meaning).
 pub const PID_KEYS: &[(&str, &str)] = &[
@@ -284,9 +279,8 @@ fn ident_key(
 ) -> Result<bool> {
     match key {
         "model_signal" => {
-            crate::data::signal::Signal::parse(v).map_err(|e| {
-                Error::Input(format!("controller `{kind}`: `model_signal`: {e}"))
-            })?;
+            crate::data::signal::Signal::parse(v)
+                .map_err(|e| Error::Input(format!("controller `{kind}`: `model_signal`: {e}")))?;
             *signal = v.trim().into();
         }
         "model_duration" => {

@@ -256,9 +256,10 @@ impl ControlSuite {
                 line,
                 "controller",
             )?;
+            // An id names files, which take no '+': `ff-pi+pid` defaults to `ff-pi-pid`.
             let id = st
                 .take_str(&mut fields, "id")?
-                .unwrap_or_else(|| kind.to_string());
+                .unwrap_or_else(|| kind.replace('+', "-"));
             let id = st.check_id(&id, &mut ids, line, "controller", &[])?;
             let params: Vec<(String, String)> = fields
                 .iter()

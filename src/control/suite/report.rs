@@ -3,8 +3,8 @@
 
 use super::ControlSuite;
 use super::run::{ControlResults, ModelRecord};
-use crate::control::run::Identification;
 use super::tables::{cell_text, comparison_markdown, table_markdown};
+use crate::control::run::Identification;
 use crate::render::table::{markdown, sig};
 use crate::stats::describe;
 use std::collections::BTreeMap;
@@ -92,7 +92,13 @@ pub(super) fn report_markdown(
                 sig(df.q1, 3),
                 sig(df.q3, 3),
             );
-            let twin = |t: &str| if t.is_empty() { "default".to_string() } else { t.to_string() };
+            let twin = |t: &str| {
+                if t.is_empty() {
+                    "default".to_string()
+                } else {
+                    t.to_string()
+                }
+            };
             s += &match &ms[0].config {
                 Identification::Rbf(c) => {
                     let one: Vec<f64> = ms.iter().filter_map(|m| m.one_step_rmse_mm).collect();

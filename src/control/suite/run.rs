@@ -53,7 +53,13 @@ pub struct ModelRecord {
 }
 
 impl ModelRecord {
-    fn new(setting: usize, trial: usize, seed: String, config: Identification, f: &Identified) -> Self {
+    fn new(
+        setting: usize,
+        trial: usize,
+        seed: String,
+        config: Identification,
+        f: &Identified,
+    ) -> Self {
         let (one_step, params, param_names, u_scale, y_scale) = match f {
             Identified::Rbf(m) => (
                 Some(m.one_step_rmse),
