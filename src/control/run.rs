@@ -433,7 +433,7 @@ impl RunSpec {
                     &m.model,
                     f.pid,
                     self.guard.u_limit,
-                )?))
+                )))
             }
             (c, _) => {
                 return Err(Error::Input(format!(
