@@ -135,7 +135,7 @@ fn bad_input_exits_2_and_writes_nothing() {
     for (args, needle) in [
         (
             vec!["--controller", "lqr", "--reference", "sweep-1-2hz"],
-            "[possible values: imc-rbf, pid]",
+            "[possible values: imc-rbf, pid, ff-pi, ff-bw, ff-pi+pid, ff-bw+pid]",
         ),
         (
             vec![
@@ -404,4 +404,144 @@ fn bad_control_suites_name_file_line_and_key() {
         );
         assert!(!out.exists());
     }
+}
+
+/// The four feedforward kinds beside the PID, on the twin and the mismatch plant.
+const FF_SUITE: &str = r#"name = "tiny-ff"
+seed = 7
+trials = 2
+
+[control]
+references = [{ id = "sine3", spec = "sine:freq=3,amp=0.2,offset=0.3,phase=-1.5707963267948966", duration = 1.5 }]
+transient = 0.5
+figures = false
+
+[[controller]]
+id = "FF-PI"
+kind = "ff-pi"
+operators = 8
+
+[[controller]]
+id = "FF-BW"
+kind = "ff-bw"
+model_budget = 800
+model_duration = 2.0
+
+[[controller]]
+kind = "ff-pi+pid"             # id defaults to the kind with '-' for '+'
+operators = 8
+
+[[controller]]
+id = "FF-BW-PID"
+kind = "ff-bw+pid"
+model_budget = 800
+model_duration = 2.0
+ki = 0.2
+
+[[controller]]
+id = "PID"
+kind = "pid"
+ki = 0.4
+kp = 0.3
+kd = 0.2
+
+[[plant]]
+id = "twin"
+
+[[plant]]
+id = "mismatch"
+twin = "creep=on"
+model_twin = "mode=off"
+
+[[table]]
+id = "ff"
+title = "Feedforward table"
+columns = ["twin", "mismatch"]
+rows = [
+  { label = "ff-pi", cells = ["FF-PI/twin/sine3", "FF-PI/mismatch/sine3"] },
+  { label = "ff-bw", cells = ["FF-BW/twin/sine3", "FF-BW/mismatch/sine3"] },
+  { label = "ff-pi+pid", cells = ["ff-pi-pid/twin/sine3", "ff-pi-pid/mismatch/sine3"] },
+  { label = "ff-bw+pid", cells = ["FF-BW-PID/twin/sine3", "FF-BW-PID/mismatch/sine3"] },
+  { label = "pid", cells = ["PID/twin/sine3", "PID/mismatch/sine3"] },
+]
+"#;
+
+#[test]
+fn feedforward_controllers_run_in_a_suite_and_fill_its_tables() {
+    let tmp = tempfile::tempdir().unwrap();
+    let suite = tmp.path().join("ff.toml");
+    std::fs::write(&suite, FF_SUITE).unwrap();
+    let out = tmp.path().join("res");
+    let o = optbench(
+        &[
+            "run",
+            suite.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        tmp.path(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let table = std::fs::read_to_string(out.join("tables/ff.md")).unwrap();
+    for label in ["ff-pi", "ff-bw", "ff-pi+pid", "ff-bw+pid", "pid"] {
+        let row = table
+            .lines()
+            .find(|l| l.starts_with(&format!("| {label} ")))
+            .unwrap_or_else(|| panic!("no row {label}:\n{table}"));
+        // Both cells ran and are finite: "median [lo, hi]".
+        assert_eq!(row.matches(" [").count(), 2, "{row}");
+        assert!(
+            !row.contains("not run") && !row.contains("diverged"),
+            "{row}"
+        );
+    }
+    // The feedforward tracks the twin far better than the PID (median RMSE, mm).
+    let cells: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let median = |c: &str, p: &str| {
+        cells
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|x| x["controller"] == c && x["plant"] == p)
+            .unwrap()["rmse"]["median"]
+            .as_f64()
+            .unwrap()
+    };
+    assert!(
+        median("FF-PI", "twin") < 0.5 * median("PID", "twin"),
+        "{cells}"
+    );
+    // One model per (model kind, identification twin, trial), shared with the +pid kind.
+    let models: Vec<Value> = std::fs::read_to_string(out.join("models.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(models.len(), 2 * 2 * 2);
+    let kinds: Vec<&str> = models
+        .iter()
+        .map(|m| m["config"]["model"]["kind"].as_str().unwrap())
+        .collect();
+    assert_eq!(kinds.iter().filter(|k| **k == "pi").count(), 4, "{kinds:?}");
+    assert!(
+        models
+            .iter()
+            .all(|m| m["free_run_rmse_mm"].as_f64().unwrap() < 0.05)
+    );
+    let runs: Vec<Value> = std::fs::read_to_string(out.join("runs.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let seed_of = |c: &str| {
+        runs.iter()
+            .find(|r| r["controller"] == c && r["plant"] == "twin" && r["trial"] == 0)
+            .unwrap()["model_seed"]
+            .clone()
+    };
+    assert_eq!(seed_of("FF-PI"), seed_of("ff-pi-pid"));
+    assert_ne!(seed_of("FF-PI"), seed_of("FF-BW"));
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(report.contains("## Identified models") && report.contains("Prandtl-Ishlinskii"));
 }

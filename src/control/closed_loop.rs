@@ -6,6 +6,7 @@
 //! 4.1); the controller returns `u(k)`, held over the next interval; the plant returns
 //! `y(k+1)`. The first reading is taken after one interval at zero command from rest.
 
+use super::feedforward::Feedforward;
 use super::model::RbfModel;
 use super::network::{NetConfig, RbfController};
 use super::pid::{IncrementalPid, PidGains};
@@ -55,6 +56,8 @@ pub enum Controller {
     Pid(IncrementalPid),
     /// The dissertation's IMC with two RBF networks.
     Imc(Box<Imc>),
+    /// The inverse of a hysteresis model on the reference, optionally plus a PID.
+    Feedforward(Box<Feedforward>),
 }
 
 impl Controller {
@@ -70,16 +73,22 @@ impl Controller {
 
     /// Called once with the command applied before the loop starts (the plant saw it too).
     fn start(&mut self, u0: f64) {
-        if let Controller::Imc(c) = self {
-            c.ym = c.model.step(u0);
-            c.jacobian = c.net.training_sensitivity(c.model.jacobian());
+        match self {
+            Controller::Imc(c) => {
+                c.ym = c.model.step(u0);
+                c.jacobian = c.net.training_sensitivity(c.model.jacobian());
+            }
+            Controller::Feedforward(f) => f.start(u0),
+            Controller::Pid(_) => {}
         }
     }
 
-    /// The command `u(k)` from the reference and the reading at sample `k`.
-    fn command(&mut self, yd: f64, y: f64) -> f64 {
+    /// The command `u(k)` from the reference and the reading at sample `k`, and the next
+    /// reference sample `y_d(k+1)` (the one `u(k)` sets; only a feedforward looks at it).
+    fn command(&mut self, yd: f64, yd_next: f64, y: f64) -> f64 {
         match self {
             Controller::Pid(p) => p.step(yd - y),
+            Controller::Feedforward(f) => f.command(yd_next, yd - y),
             Controller::Imc(c) => {
                 c.feedback = y - c.ym;
                 let e = (yd - c.feedback) - c.ym;
@@ -97,7 +106,7 @@ impl Controller {
     /// The feedback signal `d̂(k) = y(k) - y_m(k)` of the last command (0 for PID).
     fn feedback(&self) -> f64 {
         match self {
-            Controller::Pid(_) => 0.0,
+            Controller::Pid(_) | Controller::Feedforward(_) => 0.0,
             Controller::Imc(c) => c.feedback,
         }
     }
@@ -143,7 +152,7 @@ pub struct LoopRun {
     pub output: Vec<f64>,
     /// Command `u(k)` (V).
     pub command: Vec<f64>,
-    /// IMC feedback signal `d̂(k) = y(k) - y_m(k)` (mm; 0 for PID).
+    /// IMC feedback signal `d̂(k) = y(k) - y_m(k)` (mm; 0 for PID and feedforward).
     pub feedback: Vec<f64>,
     pub failure: Option<Failure>,
 }
@@ -235,7 +244,9 @@ pub fn run_loop(
             );
             break;
         }
-        let u = controller.command(yd, y);
+        // The reference is known ahead; past its end the last sample is held.
+        let yd_next = reference.get(k + 1).copied().unwrap_or(yd);
+        let u = controller.command(yd, yd_next, y);
         if !(u.is_finite() && u.abs() <= guard.u_limit) {
             run.failure = fail(
                 k,

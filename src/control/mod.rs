@@ -8,8 +8,11 @@
 //! - [`model`]: the internal model, the RBF NARX network fitted by PSO to twin data.
 //! - [`closed_loop`]: the sampled loop, the IMC structure of Fig. 4.2, the divergence guard.
 //! - [`reference`]: the dissertation's rising-frequency sinusoids and any signal as a reference.
+//! - [`feedforward`]: the alternative the dissertation names: an inverted hysteresis model
+//!   (Prandtl-Ishlinskii, Bouc-Wen) on the reference, alone or plus the PID.
 
 pub mod closed_loop;
+pub mod feedforward;
 pub mod figures;
 pub mod model;
 pub mod network;

@@ -2,6 +2,7 @@
 
 use super::model::RbfModel;
 use crate::physics::linear::LowPass;
+use crate::physics::prandtl_ishlinskii::PiStepper;
 use crate::physics::twin::Twin;
 
 /// A sampled plant. `step` holds the command `u` for one sample interval and returns the
@@ -48,5 +49,13 @@ pub struct ModelPlant(pub RbfModel);
 impl Plant for ModelPlant {
     fn step(&mut self, u: f64) -> f64 {
         self.0.step(u)
+    }
+}
+
+/// A PI model as the plant (from its demagnetised state): with its own inverse as the
+/// feedforward the loop must track exactly.
+impl Plant for PiStepper {
+    fn step(&mut self, u: f64) -> f64 {
+        PiStepper::step(self, u)
     }
 }

@@ -3,6 +3,10 @@
 //! identified on, and the numbers that come out.
 
 use super::closed_loop::{Controller, Guard, LoopRun, run_loop};
+use super::feedforward::{
+    DEFAULT_BW_BUDGET, DEFAULT_PI_OPERATORS, FF_PID, Feedforward, FittedInverse, InverseFitConfig,
+    InverseModelSpec,
+};
 use super::model::{FittedModel, ModelFitConfig, Sensitivity};
 use super::network::NetConfig;
 use super::pid::PidGains;
@@ -21,7 +25,8 @@ pub const DT: f64 = 1e-3;
 pub const DEFAULT_TRANSIENT_S: f64 = 1.0;
 
 /// The controller kinds, as named on the command line and in suites.
-pub const CONTROLLER_KINDS: [&str; 2] = ["imc-rbf", "pid"];
+pub const CONTROLLER_KINDS: [&str; 6] =
+    ["imc-rbf", "pid", "ff-pi", "ff-bw", "ff-pi+pid", "ff-bw+pid"];
 
 /// Parameters of each kind: (name, meaning).
 pub const PID_KEYS: &[(&str, &str)] = &[
@@ -74,12 +79,39 @@ pub const IMC_KEYS: &[(&str, &str)] = &[
     ("model_duration", "seconds of it (default 4)"),
 ];
 
+/// Parameters of the identification experiment, shared by every model-based kind.
+const IDENT_KEYS: &[(&str, &str)] = &[
+    ("model_signal", "identification command signal (V)"),
+    ("model_duration", "seconds of it (default 4)"),
+];
+
+/// Parameters of `ff-pi` besides the identification's: (name, meaning).
+pub const FF_PI_KEYS: &[(&str, &str)] = &[(
+    "operators",
+    "play operators of the PI model, the linear term included (default 10)",
+)];
+
+/// Parameters of `ff-bw` besides the identification's: (name, meaning).
+pub const FF_BW_KEYS: &[(&str, &str)] = &[(
+    "model_budget",
+    "CMA-ES evaluations of the Bouc-Wen fit (default 6000)",
+)];
+
 /// A controller with its settings.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
 pub enum ControllerSpec {
     Pid(PidGains),
     ImcRbf(ImcSpec),
+    Feedforward(FeedforwardSpec),
+}
+
+/// Settings of a feedforward controller: the model inverted, how it is identified, and the
+/// PID added on the error (None: feedforward alone).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FeedforwardSpec {
+    pub fit: InverseFitConfig,
+    pub pid: Option<PidGains>,
 }
 
 /// Settings of the IMC loop: its controller network and how its model is identified.
@@ -168,25 +200,11 @@ impl ControllerSpec {
                         "model_budget" => model.budget = count(kind, k, v, usize::MAX)? as u64,
                         "model_swarm" => model.swarm = count(kind, k, v, MAX_POPULATION)?,
                         "model_hidden" => model.hidden = count(kind, k, v, MAX_DIM)?,
-                        "model_signal" => {
-                            crate::data::signal::Signal::parse(v).map_err(|e| {
-                                Error::Input(format!("controller `{kind}`: `model_signal`: {e}"))
-                            })?;
-                            model.signal = v.trim().into();
-                        }
-                        "model_duration" => {
-                            let d = number(kind, k, v)?;
-                            if d <= 0.0 {
-                                return Err(Error::Input(format!(
-                                    "controller `{kind}`: `model_duration` = {d}: must be > 0"
-                                )));
+                        _ => {
+                            if !ident_key(kind, k, v, &mut model.signal, &mut model.duration)? {
+                                return Err(unknown(kind, k, IMC_KEYS));
                             }
-                            limits::samples(d, DT).map_err(|e| {
-                                Error::Input(format!("controller `{kind}`: `model_duration`: {e}"))
-                            })?;
-                            model.duration = d;
                         }
-                        _ => return Err(unknown(kind, k, IMC_KEYS)),
                     }
                 }
                 net.validate()
@@ -197,6 +215,39 @@ impl ControllerSpec {
                     sensitivity,
                 }))
             }
+            "ff-pi" | "ff-bw" | "ff-pi+pid" | "ff-bw+pid" => {
+                let with_pid = kind.ends_with("+pid");
+                let (model, model_keys) = if kind.starts_with("ff-pi") {
+                    let operators = DEFAULT_PI_OPERATORS;
+                    (InverseModelSpec::Pi { operators }, FF_PI_KEYS)
+                } else {
+                    let budget = DEFAULT_BW_BUDGET;
+                    (InverseModelSpec::BoucWen { budget }, FF_BW_KEYS)
+                };
+                let mut fit = InverseFitConfig::new(model);
+                let mut pid = with_pid.then_some(FF_PID);
+                for (k, v) in params {
+                    match (k.as_str(), &mut fit.model, &mut pid) {
+                        ("model_budget", InverseModelSpec::BoucWen { budget }, _) => {
+                            *budget = count(kind, k, v, usize::MAX)? as u64
+                        }
+                        ("operators", InverseModelSpec::Pi { operators }, _) => {
+                            *operators = count(kind, k, v, MAX_DIM)?
+                        }
+                        ("kp", _, Some(g)) => g.kp = number(kind, k, v)?,
+                        ("ki", _, Some(g)) => g.ki = number(kind, k, v)?,
+                        ("kd", _, Some(g)) => g.kd = number(kind, k, v)?,
+                        _ => {
+                            if !ident_key(kind, k, v, &mut fit.signal, &mut fit.duration)? {
+                                let pid_keys = if with_pid { PID_KEYS } else { &[] };
+                                let keys: Vec<_> = [model_keys, IDENT_KEYS, pid_keys].concat();
+                                return Err(unknown(kind, k, &keys));
+                            }
+                        }
+                    }
+                }
+                Ok(ControllerSpec::Feedforward(FeedforwardSpec { fit, pid }))
+            }
             _ => Err(Error::Input(format!(
                 "unknown controller `{kind}`; valid: {}",
                 CONTROLLER_KINDS.join(", ")
@@ -204,11 +255,98 @@ impl ControllerSpec {
         }
     }
 
-    /// `pid` or `imc-rbf`.
-    pub fn kind(&self) -> &'static str {
+    /// The kind as named on the command line (`pid`, `imc-rbf`, `ff-bw+pid`, ...).
+    pub fn kind(&self) -> String {
         match self {
-            ControllerSpec::Pid(_) => "pid",
-            ControllerSpec::ImcRbf(_) => "imc-rbf",
+            ControllerSpec::Pid(_) => "pid".into(),
+            ControllerSpec::ImcRbf(_) => "imc-rbf".into(),
+            ControllerSpec::Feedforward(f) => format!(
+                "ff-{}{}",
+                f.fit.model.short(),
+                if f.pid.is_some() { "+pid" } else { "" }
+            ),
+        }
+    }
+}
+
+/// Sets `model_signal` or `model_duration` (true), or says the key is neither (false).
+fn ident_key(
+    kind: &str,
+    key: &str,
+    v: &str,
+    signal: &mut String,
+    duration: &mut f64,
+) -> Result<bool> {
+    match key {
+        "model_signal" => {
+            crate::data::signal::Signal::parse(v)
+                .map_err(|e| Error::Input(format!("controller `{kind}`: `model_signal`: {e}")))?;
+            *signal = v.trim().into();
+        }
+        "model_duration" => {
+            let d = number(kind, key, v)?;
+            if d <= 0.0 {
+                return Err(Error::Input(format!(
+                    "controller `{kind}`: `model_duration` = {d}: must be > 0"
+                )));
+            }
+            limits::samples(d, DT)
+                .map_err(|e| Error::Input(format!("controller `{kind}`: `model_duration`: {e}")))?;
+            *duration = d;
+        }
+        _ => return Ok(false),
+    }
+    Ok(true)
+}
+
+/// How a run's model is identified: the IMC's RBF internal model or a feedforward's
+/// inverted model. Untagged: an IMC setting serialises as before.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Identification {
+    Rbf(ModelFitConfig),
+    Inverse(InverseFitConfig),
+}
+
+/// A model identified for a run.
+#[derive(Debug, Clone)]
+pub enum Identified {
+    Rbf(FittedModel),
+    Inverse(FittedInverse),
+}
+
+impl Identification {
+    /// Fits the model, every random number from `seed`.
+    pub fn fit(&self, seed: &TrialSeed) -> Result<Identified> {
+        Ok(match self {
+            Identification::Rbf(m) => Identified::Rbf(m.fit(seed)?),
+            Identification::Inverse(m) => Identified::Inverse(m.fit(seed)?),
+        })
+    }
+
+    /// The twin the model is identified on.
+    pub fn twin(&self) -> &str {
+        match self {
+            Identification::Rbf(m) => &m.twin,
+            Identification::Inverse(m) => &m.twin,
+        }
+    }
+}
+
+impl Identified {
+    /// Free-run RMSE (mm) of the model on its identification record.
+    pub fn free_run_rmse(&self) -> f64 {
+        match self {
+            Identified::Rbf(m) => m.free_run_rmse,
+            Identified::Inverse(m) => m.free_run_rmse,
+        }
+    }
+
+    /// Objective evaluations of the fit.
+    pub fn evaluations(&self) -> u64 {
+        match self {
+            Identified::Rbf(m) => m.record.evaluations,
+            Identified::Inverse(m) => m.evaluations,
         }
     }
 }
@@ -242,17 +380,22 @@ pub struct RunSpec {
 }
 
 impl RunSpec {
-    /// The identification settings of an IMC run (with the twin it is identified on).
-    pub fn model_config(&self) -> Option<ModelFitConfig> {
+    /// The identification settings of a model-based run (with the twin it is identified on).
+    pub fn model_config(&self) -> Option<Identification> {
+        let twin = self
+            .model_twin
+            .clone()
+            .unwrap_or_else(|| self.plant.clone());
         match &self.controller {
             ControllerSpec::Pid(_) => None,
-            ControllerSpec::ImcRbf(s) => Some(ModelFitConfig {
-                twin: self
-                    .model_twin
-                    .clone()
-                    .unwrap_or_else(|| self.plant.clone()),
+            ControllerSpec::ImcRbf(s) => Some(Identification::Rbf(ModelFitConfig {
+                twin,
                 ..s.model.clone()
-            }),
+            })),
+            ControllerSpec::Feedforward(f) => Some(Identification::Inverse(InverseFitConfig {
+                twin,
+                ..f.fit.clone()
+            })),
         }
     }
 
@@ -273,22 +416,30 @@ impl RunSpec {
     }
 
     /// Runs the loop on the twin with sensor noise from `noise_seed`; `model` is the fitted
-    /// internal model of an IMC run (fit it with [`Self::model_config`]).
-    pub fn execute(&self, model: Option<&FittedModel>, noise_seed: u64) -> Result<Outcome> {
+    /// model of a model-based run (fit it with [`Self::model_config`]).
+    pub fn execute(&self, model: Option<&Identified>, noise_seed: u64) -> Result<Outcome> {
         let cfg = TwinConfig::parse_overrides(&self.plant)
             .map_err(|e| Error::Input(format!("plant: {e}")))?;
         let mut twin = Twin::try_new(&cfg, noise_seed)?;
         let mut controller = match (&self.controller, model) {
             (ControllerSpec::Pid(g), _) => Controller::pid(*g),
-            (ControllerSpec::ImcRbf(s), Some(m)) => {
+            (ControllerSpec::ImcRbf(s), Some(Identified::Rbf(m))) => {
                 let mut model = m.model.clone();
                 model.sensitivity = s.sensitivity;
                 Controller::imc(model, &s.net)
             }
-            (ControllerSpec::ImcRbf(_), None) => {
-                return Err(Error::Input(
-                    "an imc-rbf run needs its fitted internal model".into(),
-                ));
+            (ControllerSpec::Feedforward(f), Some(Identified::Inverse(m))) => {
+                Controller::Feedforward(Box::new(Feedforward::new(
+                    &m.model,
+                    f.pid,
+                    self.guard.u_limit,
+                )))
+            }
+            (c, _) => {
+                return Err(Error::Input(format!(
+                    "a {} run needs its fitted model",
+                    c.kind()
+                )));
             }
         };
         let reference = self.reference.sample(DT);
@@ -315,11 +466,11 @@ pub struct Metrics {
     pub rmse_steady_mm: Option<f64>,
     /// Largest |e| after the transient.
     pub max_error_steady_mm: Option<f64>,
-    /// RMS of the IMC feedback signal `d̂ = y - y_m`, mm (0 for PID).
+    /// RMS of the IMC feedback signal `d̂ = y - y_m`, mm (0 for PID and feedforward).
     pub feedback_rms_mm: f64,
     pub transient_s: f64,
     pub failure: Option<super::closed_loop::Failure>,
-    /// Free-run RMSE (mm) of the internal model on its identification record.
+    /// Free-run RMSE (mm) of the internal or inverted model on its identification record.
     pub model_free_run_rmse_mm: Option<f64>,
 }
 
@@ -331,7 +482,7 @@ pub struct Outcome {
 }
 
 impl Outcome {
-    fn new(run: LoopRun, transient: f64, model: Option<&FittedModel>) -> Outcome {
+    fn new(run: LoopRun, transient: f64, model: Option<&Identified>) -> Outcome {
         let n = run.feedback.len().max(1) as f64;
         let metrics = Metrics {
             rmse_mm: run.rmse(0.0),
@@ -340,7 +491,7 @@ impl Outcome {
             feedback_rms_mm: (run.feedback.iter().map(|v| v * v).sum::<f64>() / n).sqrt(),
             transient_s: transient,
             failure: run.failure.clone(),
-            model_free_run_rmse_mm: model.map(|m| m.free_run_rmse),
+            model_free_run_rmse_mm: model.map(Identified::free_run_rmse),
         };
         Outcome { run, metrics }
     }

@@ -4,7 +4,7 @@
 use super::closed_loop::Guard;
 use super::figures::write_run_figures;
 use super::reference::Reference;
-use super::run::{ControllerSpec, DT, Outcome, RunSpec, key_values};
+use super::run::{ControllerSpec, DT, Identified, Outcome, RunSpec, key_values};
 use crate::base::error::{Error, Result};
 use crate::base::{TrialSeed, atomic_write};
 use crate::render::table::sig;
@@ -15,7 +15,7 @@ use std::path::PathBuf;
 /// What `optbench control` was asked.
 #[derive(Debug, Clone)]
 pub struct ControlRequest {
-    /// `imc-rbf` or `pid`.
+    /// A kind of [`super::run::CONTROLLER_KINDS`].
     pub controller: String,
     /// `key=value` controller settings.
     pub params: Vec<String>,
@@ -125,7 +125,7 @@ pub fn run(req: &ControlRequest) -> Result<String> {
         noise_seed: nseed,
         model_seed: fitted.as_ref().map(|_| mseed.hex()),
         metrics: &outcome.metrics,
-        model_fit_evaluations: fitted.as_ref().map(|f| f.record.evaluations),
+        model_fit_evaluations: fitted.as_ref().map(Identified::evaluations),
         figures: figures.clone(),
     };
     let json = serde_json::to_string_pretty(&summary)
@@ -143,12 +143,22 @@ pub fn run(req: &ControlRequest) -> Result<String> {
             &spec.plant
         }
     );
-    if let Some(f) = &fitted {
-        text += &format!(
-            "internal model: 3-7-1 RBF NARX by PSO ({} evaluations), free-run RMSE {} on its record\n",
-            f.record.evaluations,
-            fmt_mm(Some(f.free_run_rmse))
-        );
+    match &fitted {
+        Some(Identified::Rbf(f)) => {
+            text += &format!(
+                "internal model: 3-7-1 RBF NARX by PSO ({} evaluations), free-run RMSE {} on its record\n",
+                f.record.evaluations,
+                fmt_mm(Some(f.free_run_rmse))
+            )
+        }
+        Some(Identified::Inverse(f)) => {
+            text += &format!(
+                "inverted model: {}, free-run RMSE {} on its record\n",
+                f.model.describe(f.evaluations),
+                fmt_mm(Some(f.free_run_rmse))
+            )
+        }
+        None => {}
     }
     if let Some(f) = &m.failure {
         text += &format!(
@@ -164,7 +174,7 @@ pub fn run(req: &ControlRequest) -> Result<String> {
         fmt_mm(m.max_error_steady_mm),
     );
     // The IMC feedback (plant minus model) exists only with an internal model.
-    if fitted.is_some() {
+    if let Some(Identified::Rbf(_)) = fitted {
         text += &format!("; IMC feedback RMS {}", fmt_mm(Some(m.feedback_rms_mm)));
     }
     text += "\n";

@@ -13,13 +13,14 @@
 //!
 //! [[controller]]
 //! id = "IMC-RBF"
-//! kind = "imc-rbf"           # or "pid"; every other key is a parameter (optbench control --help)
+//! kind = "imc-rbf"           # or "pid", "ff-pi", "ff-bw", "ff-pi+pid", "ff-bw+pid"; every
+//!                            # other key is a parameter (optbench control --help)
 //! learning_rate = 0.1
 //!
 //! [[plant]]
 //! id = "twin"                # the default twin; several [[plant]]s give mismatch studies
 //! twin = ""                  # twin overrides of the plant in the loop
-//! model_twin = "mode=off"    # optional: the twin the internal model is identified on
+//! model_twin = "mode=off"    # optional: the twin the IMC's and feedforwards' models are identified on
 //! references = ["sweep-1-2hz"]   # optional subsets
 //! controllers = ["IMC-RBF"]
 //!
@@ -255,9 +256,10 @@ impl ControlSuite {
                 line,
                 "controller",
             )?;
+            // An id names files, which take no '+': `ff-pi+pid` defaults to `ff-pi-pid`.
             let id = st
                 .take_str(&mut fields, "id")?
-                .unwrap_or_else(|| kind.to_string());
+                .unwrap_or_else(|| kind.replace('+', "-"));
             let id = st.check_id(&id, &mut ids, line, "controller", &[])?;
             let params: Vec<(String, String)> = fields
                 .iter()
@@ -424,11 +426,14 @@ impl ControlSuite {
         }
     }
 
-    /// Sets the PSO budget of every internal-model fit (`optbench run --budget`).
+    /// Sets the budget of every iterative model fit (`optbench run --budget`): the IMC's PSO
+    /// and the Bouc-Wen feedforward's CMA-ES (a PI fit is closed-form).
     pub fn set_model_budget(&mut self, budget: u64) {
         for c in &mut self.controllers {
-            if let ControllerSpec::ImcRbf(s) = &mut c.spec {
-                s.model.budget = budget;
+            match &mut c.spec {
+                ControllerSpec::ImcRbf(s) => s.model.budget = budget,
+                ControllerSpec::Feedforward(f) => f.fit.model.set_budget(budget),
+                ControllerSpec::Pid(_) => {}
             }
         }
     }

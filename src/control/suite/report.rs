@@ -4,6 +4,7 @@
 use super::ControlSuite;
 use super::run::{ControlResults, ModelRecord};
 use super::tables::{cell_text, comparison_markdown, table_markdown};
+use crate::control::run::Identification;
 use crate::render::table::{markdown, sig};
 use crate::stats::describe;
 use std::collections::BTreeMap;
@@ -76,38 +77,54 @@ pub(super) fn report_markdown(
     s += "\n";
     s += &comparison_markdown(suite, res);
     if !res.models.is_empty() {
-        s += "\n## Internal models\n\n";
+        s += "\n## Identified models\n\n";
         let mut by: BTreeMap<usize, Vec<&ModelRecord>> = BTreeMap::new();
         for m in &res.models {
             by.entry(m.setting).or_default().push(m);
         }
         for (setting, ms) in by {
             let free: Vec<f64> = ms.iter().map(|m| m.free_run_rmse_mm).collect();
-            let one: Vec<f64> = ms.iter().map(|m| m.one_step_rmse_mm).collect();
-            let (df, d1) = (describe(&free), describe(&one));
-            let c = &ms[0].config;
-            s += &format!(
-                "- setting {setting}: {}-{}-1 RBF NARX ({} input, {} output lags), PSO {} x {} evaluations, {} cost, identified on twin `{}` with `{}` for {} s; RMSE on the identification record over {} fits: free run median {} [q1 {}, q3 {}] mm, one-step {} mm\n",
-                c.input_lags + c.output_lags,
-                c.hidden,
-                c.input_lags,
-                c.output_lags,
-                c.swarm,
-                c.budget,
-                c.mode,
-                if c.twin.is_empty() {
-                    "default"
-                } else {
-                    &c.twin
-                },
-                c.signal,
-                c.duration,
+            let df = describe(&free);
+            let rmse = format!(
+                "RMSE on the identification record over {} fits: free run median {} [q1 {}, q3 {}] mm",
                 ms.len(),
                 sig(df.median, 3),
                 sig(df.q1, 3),
                 sig(df.q3, 3),
-                sig(d1.median, 3)
             );
+            let twin = |t: &str| {
+                if t.is_empty() {
+                    "default".to_string()
+                } else {
+                    t.to_string()
+                }
+            };
+            s += &match &ms[0].config {
+                Identification::Rbf(c) => {
+                    let one: Vec<f64> = ms.iter().filter_map(|m| m.one_step_rmse_mm).collect();
+                    format!(
+                        "- setting {setting}: {}-{}-1 RBF NARX ({} input, {} output lags), PSO {} x {} evaluations, {} cost, identified on twin `{}` with `{}` for {} s; {rmse}, one-step {} mm\n",
+                        c.input_lags + c.output_lags,
+                        c.hidden,
+                        c.input_lags,
+                        c.output_lags,
+                        c.swarm,
+                        c.budget,
+                        c.mode,
+                        twin(&c.twin),
+                        c.signal,
+                        c.duration,
+                        sig(describe(&one).median, 3)
+                    )
+                }
+                Identification::Inverse(c) => format!(
+                    "- setting {setting}: inverted model {}, identified on twin `{}` with `{}` for {} s; {rmse}\n",
+                    c.model.describe(),
+                    twin(&c.twin),
+                    c.signal,
+                    c.duration,
+                ),
+            };
         }
     }
     if !figures.is_empty() {
@@ -176,8 +193,8 @@ mod tests {
             assert!(md.contains(part), "{part:?} missing in\n{md}");
         }
         assert!(
-            !md.contains("## Internal models"),
-            "no IMC, no models section"
+            !md.contains("## Identified models"),
+            "no model-based controller, no models section"
         );
         // The paper tables (one per [[table]]) and every cell render as GFM tables.
         let tables = crate::render::table::check_gfm_tables(&md);

@@ -10,8 +10,7 @@ use super::tables::{
 use crate::base::atomic_write;
 use crate::base::error::{Error, Result};
 use crate::control::figures::write_run_figures;
-use crate::control::model::{FittedModel, ModelFitConfig};
-use crate::control::run::Metrics;
+use crate::control::run::{Identification, Identified, Metrics};
 use crate::control::single::{model_seed, noise_seed, run_csv};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -25,25 +24,72 @@ pub struct RunRecord {
     pub reference: String,
     pub trial: usize,
     pub noise_seed: u64,
-    /// Key of the internal model's fit (hex), for IMC runs.
+    /// Key of the model's fit (hex), for model-based runs.
     pub model_seed: Option<String>,
     pub metrics: Metrics,
 }
 
-/// One fitted internal model: a line of `models.jsonl`.
+/// One fitted model (an IMC's internal model or a feedforward's inverted one): a line of
+/// `models.jsonl`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ModelRecord {
     /// Index of the identification setting (order of first use in the plan).
     pub setting: usize,
     pub trial: usize,
     pub seed: String,
-    pub config: ModelFitConfig,
+    pub config: Identification,
     pub evaluations: u64,
     pub free_run_rmse_mm: f64,
-    pub one_step_rmse_mm: f64,
+    /// RBF NARX models only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub one_step_rmse_mm: Option<f64>,
+    /// RBF NARX: the network's vector in normalised units (see `u_scale`, `y_scale`); inverted
+    /// models: the values of `param_names`.
     pub params: Vec<f64>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub param_names: Vec<String>,
     pub u_scale: f64,
     pub y_scale: f64,
+}
+
+impl ModelRecord {
+    fn new(
+        setting: usize,
+        trial: usize,
+        seed: String,
+        config: Identification,
+        f: &Identified,
+    ) -> Self {
+        let (one_step, params, param_names, u_scale, y_scale) = match f {
+            Identified::Rbf(m) => (
+                Some(m.one_step_rmse),
+                m.model.params.clone(),
+                Vec::new(),
+                m.model.u_scale,
+                m.model.y_scale,
+            ),
+            Identified::Inverse(m) => (
+                None,
+                m.params.iter().map(|p| p.1).collect(),
+                m.params.iter().map(|p| p.0.clone()).collect(),
+                1.0,
+                1.0,
+            ),
+        };
+        ModelRecord {
+            setting,
+            trial,
+            seed,
+            config,
+            evaluations: f.evaluations(),
+            free_run_rmse_mm: f.free_run_rmse(),
+            one_step_rmse_mm: one_step,
+            params,
+            param_names,
+            u_scale,
+            y_scale,
+        }
+    }
 }
 
 /// Everything a control suite produced.
@@ -68,7 +114,7 @@ pub fn run_suite(suite: &ControlSuite, threads: Option<usize>, out: &Path) -> Re
     let plan = suite.plan();
 
     // Identification settings in order of first use, and the (setting, trial) fits.
-    let mut settings: Vec<(String, ModelFitConfig)> = Vec::new();
+    let mut settings: Vec<(String, Identification)> = Vec::new();
     let mut run_setting: Vec<Option<usize>> = Vec::with_capacity(plan.len());
     for r in &plan {
         let idx = suite.run_spec(r).model_config().map(|m| {
@@ -91,7 +137,7 @@ pub fn run_suite(suite: &ControlSuite, threads: Option<usize>, out: &Path) -> Re
     fits.sort_unstable();
     fits.dedup();
 
-    let fitted: Vec<FittedModel> = pool.install(|| {
+    let fitted: Vec<Identified> = pool.install(|| {
         fits.par_iter()
             .map(|&(s, trial)| {
                 let (key, cfg) = &settings[s];
@@ -99,7 +145,7 @@ pub fn run_suite(suite: &ControlSuite, threads: Option<usize>, out: &Path) -> Re
             })
             .collect::<Result<Vec<_>>>()
     })?;
-    let model_of = |s: usize, trial: usize| -> &FittedModel {
+    let model_of = |s: usize, trial: usize| -> &Identified {
         let i = fits
             .binary_search(&(s, trial))
             .expect("every fit of the plan was run");
@@ -135,17 +181,9 @@ pub fn run_suite(suite: &ControlSuite, threads: Option<usize>, out: &Path) -> Re
     let models: Vec<ModelRecord> = fits
         .iter()
         .zip(&fitted)
-        .map(|(&(s, trial), f)| ModelRecord {
-            setting: s,
-            trial,
-            seed: model_seed(suite.seed, &settings[s].0, trial as u64).hex(),
-            config: settings[s].1.clone(),
-            evaluations: f.record.evaluations,
-            free_run_rmse_mm: f.free_run_rmse,
-            one_step_rmse_mm: f.one_step_rmse,
-            params: f.model.params.clone(),
-            u_scale: f.model.u_scale,
-            y_scale: f.model.y_scale,
+        .map(|(&(s, trial), f)| {
+            let seed = model_seed(suite.seed, &settings[s].0, trial as u64).hex();
+            ModelRecord::new(s, trial, seed, settings[s].1.clone(), f)
         })
         .collect();
     let runs: Vec<RunRecord> = outcomes.iter().map(|(r, _)| r.clone()).collect();
@@ -304,7 +342,7 @@ pub struct RunOverrides {
     pub trials: Option<usize>,
     pub threads: Option<usize>,
     pub seed: Option<u64>,
-    /// PSO evaluations of every internal-model fit.
+    /// Evaluations of every iterative model fit (the IMC's PSO, the Bouc-Wen CMA-ES).
     pub budget: Option<u64>,
     pub quiet: bool,
     /// See `pipeline::run::RunRequest::overwrite`.
