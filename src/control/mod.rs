@@ -11,6 +11,7 @@
 
 pub mod closed_loop;
 pub mod figures;
+pub mod invert;
 pub mod model;
 pub mod network;
 pub mod pid;
