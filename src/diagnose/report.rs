@@ -61,6 +61,9 @@ pub fn text(d: &Diagnosis) -> String {
     );
     let b = &d.baseline;
     let _ = writeln!(s, "exponent: {}", d.exponent);
+    for na in &d.not_applicable {
+        let _ = writeln!(s, "not searched: {na}");
+    }
     let _ = writeln!(
         s,
         "baseline {}: train RMSE {}{u}, validation RMSE {}{u} (band {}-{}, {:.1}x the noise floor)",
