@@ -44,8 +44,7 @@ use crate::base::error::{Error, Result};
 use crate::base::standard_normal;
 use crate::data::recording::Recording;
 use crate::physics::structure::{
-    Context, Effect, Form, Hold, MAX_RECORDS, MIN_SUBSTEPS, ParamSpec, PiCore, Placement,
-    Structure,
+    Context, Effect, Form, Hold, MAX_RECORDS, MIN_SUBSTEPS, ParamSpec, PiCore, Placement, Structure,
 };
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
@@ -1908,10 +1907,12 @@ pub fn diagnose_with_tests(
     let ctx = Context::from_records(&inputs)
         .with_hold(opts.hold)
         .with_min_substeps(opts.min_substeps)
-        .with_pi(
-            opts.is_pi()
-                .then(|| PiCore::new(opts.pi_operators, &inputs.iter().map(|r| r.0).collect::<Vec<_>>())),
-        );
+        .with_pi(opts.is_pi().then(|| {
+            PiCore::new(
+                opts.pi_operators,
+                &inputs.iter().map(|r| r.0).collect::<Vec<_>>(),
+            )
+        }));
     let (train_noise, train_settled) = (tj.noise, tj.settled);
     let (validate_noise, validate_settled) = (vj.noise, vj.settled);
     let noise = (0.5 * (train_noise * train_noise + validate_noise * validate_noise)).sqrt();

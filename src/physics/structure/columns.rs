@@ -442,10 +442,13 @@ impl Structure {
                 .filter(|(g, _)| *g != 0.0)
                 .map(|(g, tau)| {
                     let l = LowPass::new(tau, dt);
-                    (g, match exp_tau {
-                        Some(t) => l.with_exp_hold(t),
-                        None => l,
-                    })
+                    (
+                        g,
+                        match exp_tau {
+                            Some(t) => l.with_exp_hold(t),
+                            None => l,
+                        },
+                    )
                 })
                 .collect(),
             None => Vec::new(),

@@ -105,9 +105,9 @@ impl LinearFit {
 
 /// Names of a PI core's play weights (`w0` the linear term's).
 const PI_WEIGHTS: [&str; MAX_PI_OPERATORS] = [
-    "w0", "w1", "w2", "w3", "w4", "w5", "w6", "w7", "w8", "w9", "w10", "w11", "w12", "w13",
-    "w14", "w15", "w16", "w17", "w18", "w19", "w20", "w21", "w22", "w23", "w24", "w25", "w26",
-    "w27", "w28", "w29", "w30", "w31",
+    "w0", "w1", "w2", "w3", "w4", "w5", "w6", "w7", "w8", "w9", "w10", "w11", "w12", "w13", "w14",
+    "w15", "w16", "w17", "w18", "w19", "w20", "w21", "w22", "w23", "w24", "w25", "w26", "w27",
+    "w28", "w29", "w30", "w31",
 ];
 
 impl Structure {
@@ -447,7 +447,9 @@ impl Structure {
 
     /// Play operators of a PI core (0 for Bouc-Wen).
     pub fn pi_operators(&self) -> usize {
-        self.ctx.pi.map_or(0, |p| p.operators.clamp(1, MAX_PI_OPERATORS))
+        self.ctx
+            .pi
+            .map_or(0, |p| p.operators.clamp(1, MAX_PI_OPERATORS))
     }
 
     /// Indices (in [`LinearFit::coef`]) of coefficients that belong to a record's own
