@@ -99,3 +99,41 @@ fn a_concealed_twin_effect_is_named_by_both_cores() {
         );
     }
 }
+
+/// Effects the PI core does not take are refused when named, and `--help` says why.
+#[test]
+fn effects_a_pi_core_does_not_take_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let run = |args: &[&str]| common::optbench(args, d);
+    common::refused(
+        &run(&[
+            "diagnose",
+            "--model",
+            "pi",
+            "--train",
+            "a.csv",
+            "--validate",
+            "b.csv",
+            "--effects",
+            "delay,asymmetry",
+        ]),
+        &["asymmetry", "does not apply", "asymmetric form"],
+    );
+    common::refused(
+        &run(&[
+            "diagnose",
+            "--proof",
+            "--model",
+            "pi",
+            "--cases",
+            "none,rate-dependence",
+        ]),
+        &["--cases rate-dependence", "does not search rate-dependence"],
+    );
+    let help = common::ok(&run(&["diagnose", "--help"]));
+    assert!(
+        help.contains("asymmetry and rate-dependence are not searched"),
+        "{help}"
+    );
+}
