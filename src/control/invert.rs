@@ -135,7 +135,10 @@ pub struct WindowFigures {
     /// RMS of (recorded command − ours).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub command_rms_difference: Option<f64>,
-    /// Model-predicted tracking of the recorded command.
+    /// Model-predicted tracking of the recorded command. A recorded command is scored
+    /// against the desired value at its own sample, its output `lag` samples later (a
+    /// command that does not lead, as the P-885 authors compare theirs); ours leads by
+    /// `lag` and is scored at the same sample.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub recorded_predicted: Option<Tracking>,
     /// Measured tracking of the recorded command (real).
@@ -193,9 +196,13 @@ fn mean(x: &[f64]) -> f64 {
     x.iter().sum::<f64>() / x.len().max(1) as f64
 }
 
-/// Tracking of `out` against `want` on the samples `idx`.
-fn tracking(out: &[f64], want: &[f64], idx: &[usize]) -> Tracking {
-    let e: Vec<f64> = idx.iter().map(|&k| out[k] - want[k]).collect();
+/// Tracking of `out` `shift` samples later against `want` on the samples `idx`.
+fn tracking(out: &[f64], want: &[f64], idx: &[usize], shift: usize) -> Tracking {
+    let e: Vec<f64> = idx
+        .iter()
+        .filter(|&&k| k + shift < out.len())
+        .map(|&k| out[k + shift] - want[k])
+        .collect();
     let m = mean(&e);
     let rms = |f: &dyn Fn(f64) -> f64| {
         (e.iter().map(|&x| f(x).powi(2)).sum::<f64>() / e.len().max(1) as f64).sqrt()
@@ -320,17 +327,17 @@ pub fn invert(train: &Recording, desired: &Desired, opts: &InvertOptions) -> Res
             Ok(WindowFigures {
                 name: w.name.clone(),
                 samples: idx.len(),
-                ours_predicted: tracking(&predicted, &y_desired, &idx),
+                ours_predicted: tracking(&predicted, &y_desired, &idx, 0),
                 command_rms_difference: rms_diff,
                 recorded_predicted: recorded_predicted
                     .as_ref()
-                    .map(|p| tracking(p, &y_desired, &idx)),
+                    .map(|p| tracking(p, &y_desired, &idx, opts.lag)),
                 recorded_measured: desired
                     .output
                     .as_ref()
-                    .map(|o| tracking(o, &y_desired, &idx)),
+                    .map(|o| tracking(o, &y_desired, &idx, opts.lag)),
                 model_free_run: match (&recorded_predicted, &desired.output) {
-                    (Some(p), Some(o)) => Some(tracking(p, o, &idx)),
+                    (Some(p), Some(o)) => Some(tracking(p, o, &idx, 0)),
                     _ => None,
                 },
             })
@@ -441,8 +448,9 @@ impl Inversion {
             if let Some(t) = &w.recorded_measured {
                 let _ = writeln!(
                     s,
-                    "  recorded command, measured tracking RMSE: {} (real)",
-                    tr(t)
+                    "  recorded command, measured tracking RMSE: {} (real; output {} sample(s) later)",
+                    tr(t),
+                    self.lag
                 );
             }
             if let Some(t) = &w.model_free_run {
