@@ -354,6 +354,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
         }
     };
     let fl = s.final_label.clone();
+    let bl = format!("baseline ({})", d.baseline.model);
     let input = if s.input_unit.is_empty() {
         "input u".to_string()
     } else {
@@ -396,10 +397,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
         render::lines(
             &dir.join(format!("{name}_residual_time")),
             &format!("{set}: residual over time"),
-            &[
-                ("baseline (bouc-wen)".into(), pts(&eb)),
-                (format!("final ({fl})"), pts(&ef)),
-            ],
+            &[(bl.clone(), pts(&eb)), (format!("final ({fl})"), pts(&ef))],
             "time [s]",
             &unit(2, "residual"),
             (false, false),
@@ -469,7 +467,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
             &s.u[i],
             (render::MEASURED, &s.y[i]),
             &[
-                ("baseline (bouc-wen)".into(), s.baseline[i].clone()),
+                (bl.clone(), s.baseline[i].clone()),
                 (format!("final ({fl})"), s.final_model[i].clone()),
             ],
             &input,

@@ -115,8 +115,18 @@ pub fn model_file(f: &Fitted, units: [&str; 3], validation: Option<ValidationSta
     let mut m = ModelFile::new(
         "structure",
         &format!(
-            "{}: Bouc-Wen with the extensions `optbench diagnose` accepted (physics::structure), shape unit-free on the training data's context, linear coefficients (gain, offset, hysteretic scale, drift, creep states) in the recording's units",
-            st.label()
+            "{}: {} with the extensions `optbench diagnose` accepted (physics::structure), shape unit-free on the training data's context, linear coefficients ({}) in the recording's units",
+            st.label(),
+            if ctx.pi.is_some() {
+                "a Prandtl-Ishlinskii core (plays with fixed thresholds)"
+            } else {
+                "Bouc-Wen"
+            },
+            if ctx.pi.is_some() {
+                "play weights, offset, drift, creep states"
+            } else {
+                "gain, offset, hysteretic scale, drift, creep states"
+            }
         ),
         Units {
             time: ut.into(),
