@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{code_and_stderr, lab_csv, optbench, read_json};
+use common::{code_and_stderr, data_set, lab_csv, optbench, read_json};
 use optbench::diagnose::{Options, diagnose, proof};
 
 fn opts(seed: u64) -> Options {
@@ -556,19 +556,6 @@ fn command_handles_a_record_starting_in_motion_and_one_with_long_rests() {
     assert!(h0.is_finite() && h0.abs() > 1e-3, "h0 {h0}");
     let rmse = json["final"]["validate_rmse"].as_f64().unwrap();
     assert!(rmse.is_finite() && rmse > 0.0, "{rmse}");
-}
-
-/// The data set `$OPTBENCH_DATA/name`, or `None` after saying the test is skipped.
-fn data_set(name: &str) -> Option<std::path::PathBuf> {
-    let dir = optbench::data::recording::data_dir().join(name);
-    if !dir.is_dir() {
-        eprintln!(
-            "skipped: {} is absent (set OPTBENCH_DATA to the data folder)",
-            dir.display()
-        );
-        return None;
-    }
-    Some(dir)
 }
 
 /// A real piezo stack (PI P-885.91, `$OPTBENCH_DATA/pea_p885_dbo`) as a regression case:

@@ -243,14 +243,9 @@ fn a_record_of_the_fit_is_run_from_its_own_state() {
 /// through `simulate --model`, under the file's own column names.
 #[test]
 fn a_model_fitted_to_a_real_recording_reproduces_its_validation_rmse() {
-    let data = optbench::data::recording::data_dir().join("pea_p885_dbo");
-    if !data.is_dir() {
-        eprintln!(
-            "skipped: {} is absent (set OPTBENCH_DATA to the data folder)",
-            data.display()
-        );
+    let Some(data) = common::data_set("pea_p885_dbo") else {
         return;
-    }
+    };
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let train = data.join("dbo_identification_1Hz_sine.csv");

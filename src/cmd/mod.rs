@@ -9,6 +9,7 @@ pub mod bench;
 pub mod control;
 pub mod diagnose;
 pub mod fit;
+pub mod invert;
 pub mod list;
 pub mod merge;
 pub mod report;
@@ -43,6 +44,9 @@ pub enum Command {
     Merge(merge::MergeArgs),
     /// Fit one model to one recording with one optimizer; numbers and figures in --out.
     Fit(fit::FitArgs),
+    /// Feedforward by an inverted Prandtl-Ishlinskii model: fit it to a recording, compute
+    /// the command for a desired trajectory, compare with a recorded command.
+    Invert(invert::InvertArgs),
     /// Write piezo-twin recordings: the dissertation's experiments, or one --signal.
     Simulate(simulate::SimulateArgs),
     /// Locate where a hysteresis model misses a recording, name the missing physics and
@@ -80,6 +84,7 @@ fn dispatch(cli: Cli) -> Result<()> {
         Command::Report(a) => report::run(a),
         Command::Merge(a) => merge::run(a),
         Command::Fit(a) => fit::run(a),
+        Command::Invert(a) => invert::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Diagnose(a) => diagnose::run(a),
         Command::List(a) => list::run(a),

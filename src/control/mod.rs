@@ -14,6 +14,7 @@
 pub mod closed_loop;
 pub mod feedforward;
 pub mod figures;
+pub mod invert;
 pub mod model;
 pub mod network;
 pub mod pid;

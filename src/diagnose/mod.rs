@@ -44,7 +44,7 @@ use crate::base::error::{Error, Result};
 use crate::base::standard_normal;
 use crate::data::recording::Recording;
 use crate::physics::structure::{
-    Context, Effect, Form, Hold, MAX_RECORDS, MIN_SUBSTEPS, ParamSpec, Placement, Structure,
+    Context, Effect, Form, Hold, MAX_RECORDS, MIN_SUBSTEPS, ParamSpec, PiCore, Placement, Structure,
 };
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
@@ -59,8 +59,11 @@ use std::sync::Arc;
 /// What the diagnosis does; the defaults are what `optbench diagnose` runs.
 #[derive(Clone, Debug)]
 pub struct Options {
-    /// Model family: `bouc-wen` (n fitted) or `bouc-wen-n1` (n = 1).
+    /// Model family: `bouc-wen` (n fitted), `bouc-wen-n1` (n = 1) or `pi` (a
+    /// Prandtl-Ishlinskii core of [`Self::pi_operators`] plays, [`PiCore`]).
     pub model: String,
+    /// Plays of the `pi` core.
+    pub pi_operators: usize,
     pub seed: u64,
     /// Extensions tried as candidates.
     pub effects: Vec<Effect>,
@@ -102,6 +105,7 @@ impl Default for Options {
     fn default() -> Self {
         Options {
             model: "bouc-wen".into(),
+            pi_operators: 10,
             seed: 1,
             effects: Effect::ALL.to_vec(),
             bootstrap: 19,
@@ -150,11 +154,53 @@ impl Options {
     pub fn fixed_n(&self) -> Result<Option<f64>> {
         match self.model.as_str() {
             "bouc-wen" => Ok(None),
-            "bouc-wen-n1" => Ok(Some(1.0)),
+            // The PI core has no exponent; pinning it keeps the exponent search off.
+            "bouc-wen-n1" | "pi" => Ok(Some(1.0)),
             m => Err(Error::Input(format!(
-                "--model {m}: unknown; valid: bouc-wen, bouc-wen-n1"
+                "--model {m}: unknown; valid: bouc-wen, bouc-wen-n1, pi"
             ))),
         }
+    }
+
+    /// Whether the core is a Prandtl-Ishlinskii model.
+    pub fn is_pi(&self) -> bool {
+        self.model == "pi"
+    }
+
+    /// The effects that do not apply to the model, each with why ([`Effect::not_for_pi`]).
+    pub fn not_applicable(&self) -> Vec<(Effect, &'static str)> {
+        if !self.is_pi() {
+            return Vec::new();
+        }
+        Effect::ALL
+            .iter()
+            .filter_map(|&e| e.not_for_pi().map(|why| (e, why)))
+            .collect()
+    }
+
+    /// The candidate effects the model can take: [`Self::effects`] without those that do
+    /// not apply; an error naming them if they were asked for explicitly (`explicit`).
+    pub fn applicable_effects(&self, explicit: bool) -> Result<Vec<Effect>> {
+        let na = self.not_applicable();
+        let asked: Vec<String> = na
+            .iter()
+            .filter(|(e, _)| self.effects.contains(e))
+            .map(|(e, why)| format!("{}: {why}", e.name()))
+            .collect();
+        if explicit && !asked.is_empty() {
+            return Err(Error::Input(format!(
+                "--effects with --model {}: {} does not apply ({}); leave it out",
+                self.model,
+                asked.len(),
+                asked.join("; ")
+            )));
+        }
+        Ok(self
+            .effects
+            .iter()
+            .copied()
+            .filter(|e| !na.iter().any(|(x, _)| x == e))
+            .collect())
     }
 }
 
@@ -247,6 +293,10 @@ pub struct Diagnosis {
     pub located: Vec<Located>,
     pub candidates: Vec<Candidate>,
     pub left_out: Vec<String>,
+    /// Effects the model does not take, each with why (`--model pi`: the PI model's own
+    /// asymmetric and rate-dependent forms).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub not_applicable: Vec<String>,
     #[serde(rename = "final")]
     pub final_model: ModelSummary,
     /// What the final model attributes to the recording set-up, not to the actuator: the
@@ -1812,6 +1862,18 @@ pub fn diagnose_with_tests(
     let spin = crate::pipeline::runner::spinner(opts.progress);
     spin.set_message("fitting the plain model");
     let fixed_n = opts.fixed_n()?;
+    // A PI core takes fewer extensions and no feedback placement ([`Options::not_applicable`]).
+    let pi_opts;
+    let opts = if opts.is_pi() {
+        pi_opts = Options {
+            effects: opts.applicable_effects(false)?,
+            feedback: false,
+            ..opts.clone()
+        };
+        &pi_opts
+    } else {
+        opts
+    };
     let (tj, vj) = (
         Joined::of(train, "training")?,
         Joined::of(validate, "validation")?,
@@ -1844,7 +1906,13 @@ pub fn diagnose_with_tests(
     }
     let ctx = Context::from_records(&inputs)
         .with_hold(opts.hold)
-        .with_min_substeps(opts.min_substeps);
+        .with_min_substeps(opts.min_substeps)
+        .with_pi(opts.is_pi().then(|| {
+            PiCore::new(
+                opts.pi_operators,
+                &inputs.iter().map(|r| r.0).collect::<Vec<_>>(),
+            )
+        }));
     let (train_noise, train_settled) = (tj.noise, tj.settled);
     let (validate_noise, validate_settled) = (vj.noise, vj.settled);
     let noise = (0.5 * (train_noise * train_noise + validate_noise * validate_noise)).sqrt();
@@ -1875,6 +1943,11 @@ pub fn diagnose_with_tests(
     // With n free, ask BIC whether n = 1 (the closed-form kernel, ten times faster) is as
     // good: keep n free only if it improves BIC by the margin.
     let mut n_choice = match fixed_n {
+        Some(_) if opts.is_pi() => format!(
+            "none: a Prandtl-Ishlinskii core of {} plays (thresholds fixed, weights fitted \
+             by least squares, unconstrained in sign)",
+            plain.pi_operators()
+        ),
         Some(n) => format!("n pinned at {n} by --model {}", opts.model),
         None => String::new(),
     };
@@ -2567,6 +2640,11 @@ pub fn diagnose_with_tests(
     };
     let mut diag = Diagnosis {
         model: opts.model.clone(),
+        not_applicable: opts
+            .not_applicable()
+            .into_iter()
+            .map(|(e, why)| format!("{}: {why}", e.name()))
+            .collect(),
         train: train.name.clone(),
         validate: validate.name.clone(),
         unit,

@@ -61,6 +61,9 @@ pub fn text(d: &Diagnosis) -> String {
     );
     let b = &d.baseline;
     let _ = writeln!(s, "exponent: {}", d.exponent);
+    for na in &d.not_applicable {
+        let _ = writeln!(s, "not searched: {na}");
+    }
     let _ = writeln!(
         s,
         "baseline {}: train RMSE {}{u}, validation RMSE {}{u} (band {}-{}, {:.1}x the noise floor)",
@@ -351,6 +354,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
         }
     };
     let fl = s.final_label.clone();
+    let bl = format!("baseline ({})", d.baseline.model);
     let input = if s.input_unit.is_empty() {
         "input u".to_string()
     } else {
@@ -393,10 +397,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
         render::lines(
             &dir.join(format!("{name}_residual_time")),
             &format!("{set}: residual over time"),
-            &[
-                ("baseline (bouc-wen)".into(), pts(&eb)),
-                (format!("final ({fl})"), pts(&ef)),
-            ],
+            &[(bl.clone(), pts(&eb)), (format!("final ({fl})"), pts(&ef))],
             "time [s]",
             &unit(2, "residual"),
             (false, false),
@@ -466,7 +467,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
             &s.u[i],
             (render::MEASURED, &s.y[i]),
             &[
-                ("baseline (bouc-wen)".into(), s.baseline[i].clone()),
+                (bl.clone(), s.baseline[i].clone()),
                 (format!("final ({fl})"), s.final_model[i].clone()),
             ],
             &input,

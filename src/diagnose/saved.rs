@@ -29,6 +29,8 @@ fn unit(name: &str, ui: &str, uo: &str, ratio: &str) -> String {
         "d_e" | "alpha" => ratio.into(),
         "beta" | "gamma" if !ratio.is_empty() => format!("{uo}^(1-n)/{ui}"),
         "d0" | "h0" | "z0" => uo.into(),
+        n if n.starts_with('w') && n[1..].parse::<usize>().is_ok() => ratio.into(),
+        n if n.starts_with('r') && n[1..].parse::<usize>().is_ok() => ui.into(),
         "mass" => per(&format!("{ui} s^2"), uo),
         "damping" => per(&format!("{ui} s"), uo),
         "stiffness" => per(ui, uo),
@@ -105,6 +107,7 @@ pub fn model_file(f: &Fitted, units: [&str; 3], validation: Option<ValidationSta
             t_ref: ctx.t_ref,
             hold: ctx.hold.name().into(),
             min_substeps: ctx.min_substeps,
+            pi: ctx.pi,
         },
         shape,
         linear: named(st.linear_names(), &f.linear.coef),
@@ -112,8 +115,18 @@ pub fn model_file(f: &Fitted, units: [&str; 3], validation: Option<ValidationSta
     let mut m = ModelFile::new(
         "structure",
         &format!(
-            "{}: Bouc-Wen with the extensions `optbench diagnose` accepted (physics::structure), shape unit-free on the training data's context, linear coefficients (gain, offset, hysteretic scale, drift, creep states) in the recording's units",
-            st.label()
+            "{}: {} with the extensions `optbench diagnose` accepted (physics::structure), shape unit-free on the training data's context, linear coefficients ({}) in the recording's units",
+            st.label(),
+            if ctx.pi.is_some() {
+                "a Prandtl-Ishlinskii core (plays with fixed thresholds)"
+            } else {
+                "Bouc-Wen"
+            },
+            if ctx.pi.is_some() {
+                "play weights, offset, drift, creep states"
+            } else {
+                "gain, offset, hysteretic scale, drift, creep states"
+            }
         ),
         Units {
             time: ut.into(),

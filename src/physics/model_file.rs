@@ -256,6 +256,9 @@ pub struct StructureContext {
     pub t_ref: f64,
     pub hold: String,
     pub min_substeps: usize,
+    /// A Prandtl-Ishlinskii core (`diagnose --model pi`); absent: Bouc-Wen.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pi: Option<crate::physics::structure::PiCore>,
 }
 
 /// An input to run a model on: samples every `dt`, with the measured output if there is one
@@ -741,6 +744,7 @@ impl ModelFile {
             t_ref: c.t_ref,
             hold,
             min_substeps: c.min_substeps,
+            pi: c.pi,
         };
         let mut st = Structure::with_forms(&parts, s.fixed_n, ctx, placement);
         let pairs = |v: &[Named]| -> Vec<(String, f64)> {

@@ -158,6 +158,19 @@ pub fn code_and_stderr(args: &[&str], cwd: &Path) -> (Option<i32>, String) {
     )
 }
 
+/// The data set `$OPTBENCH_DATA/name`, or `None` after saying the test is skipped.
+pub fn data_set(name: &str) -> Option<std::path::PathBuf> {
+    let dir = optbench::data::recording::data_dir().join(name);
+    if !dir.is_dir() {
+        eprintln!(
+            "skipped: {} is absent (set OPTBENCH_DATA to the data folder)",
+            dir.display()
+        );
+        return None;
+    }
+    Some(dir)
+}
+
 /// A JSON file the command wrote.
 pub fn read_json(path: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()

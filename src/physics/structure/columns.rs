@@ -2,6 +2,7 @@
 //! free, for variable projection.
 
 use super::*;
+use crate::physics::prandtl_ishlinskii::play;
 
 impl Structure {
     /// Simulates the regressor columns on input `u`: `[v, 1, -(1+ρr) α-free g]` after the
@@ -55,45 +56,7 @@ impl Structure {
         let mut rate =
             (self.has(Effect::RateDependence) && sh.rho != 0.0).then(|| LowPass::new(sh.tau_r, dt));
         let exp_tau = lag.as_ref().map(|_| sh.lag);
-        let with_hold_lp = |l: LowPass| match exp_tau {
-            Some(t) => l.with_exp_hold(t),
-            None => l,
-        };
-        let mut creep: Vec<(f64, LowPass, LowPass)> = match self.form(Effect::Creep) {
-            Some(form) => sh
-                .creep_elements(form, ctx)
-                .into_iter()
-                .filter(|(g, _)| *g != 0.0)
-                .map(|(g, tau)| {
-                    (
-                        g,
-                        with_hold_lp(LowPass::new(tau, dt)),
-                        with_hold_lp(LowPass::new(tau, dt)),
-                    )
-                })
-                .collect(),
-            None => Vec::new(),
-        };
-        let mk_mode = |f: f64, zeta: f64| {
-            let m = Mode::new(f, zeta.max(0.0), dt);
-            match exp_tau {
-                Some(t) => m.with_exp_hold(t),
-                None => m,
-            }
-        };
-        let mut mode = (self.has(Effect::Dynamics) && sh.mode_p > 0.0).then(|| {
-            let f = 1.0 / (2.0 * std::f64::consts::PI * sh.mode_p);
-            (mk_mode(f, sh.zeta), mk_mode(f, sh.zeta))
-        });
-        let share = sh.mode2_share.clamp(0.0, 1.0);
-        let mut mode2 = (self.has(Effect::Dynamics) && sh.mode2_hz.is_finite() && share > 0.0)
-            .then(|| {
-                (
-                    mk_mode(sh.mode2_hz, sh.mode2_zeta),
-                    mk_mode(sh.mode2_hz, sh.mode2_zeta),
-                )
-            });
-
+        let blocks = self.after_blocks(&sh, exp_tau);
         // Initial state: every block at rest at the first sample.
         let u0 = u[0];
         if let Some(l) = &mut lag {
@@ -103,6 +66,50 @@ impl Structure {
             l.settle(u0);
         }
         let v0 = drive(u0);
+        // Previous inputs of the linear blocks, for the hold (`block_hold`): the drive
+        // into the lag; without a lag, the hysteresis output into creep and modes (with a
+        // lag, their inputs are continuous and the exponential hold is exact).
+        let hold = sh.block_hold.clamp(0.0, 1.0);
+        let mut prev_u = u0;
+        let no_lag = lag.is_none();
+        let mut drives = u.iter().map(|&x0| {
+            let mut x = x0;
+            if let Some(l) = &mut lag {
+                x = l.step(held(hold, x, &mut prev_u));
+            }
+            if let Some(l) = &mut lag2 {
+                x = l.step(x);
+            }
+            drive(x)
+        });
+        if let Some(pi) = self.ctx.pi {
+            let r = pi.thresholds();
+            let mut z = vec![0.0; r.len()];
+            let mut cols = vec![vec![0.0; n]; r.len()];
+            let mut after: Vec<After> = Vec::with_capacity(r.len());
+            for k in 0..n {
+                let v = drives.next().unwrap_or(v0);
+                let mut finite = finite_shape;
+                for (i, zi) in z.iter_mut().enumerate() {
+                    *zi = play(r[i], *zi, v);
+                    if k == 0 {
+                        after.push(blocks.start(*zi, hold, no_lag));
+                    }
+                    let x = after[i].step(*zi);
+                    finite &= x.is_finite();
+                    cols[i][k] = x;
+                }
+                if !finite {
+                    status = Status::Unstable { at: k };
+                    for c in &mut cols {
+                        c[k..].fill(0.0);
+                    }
+                    break;
+                }
+            }
+            cols.extend(self.state_columns(&sh, n));
+            return (cols, status);
+        }
         // The rate's memory starts at the rate the record starts with: a record cut from a
         // running excitation starts in motion, and memory at rest would add a start-up
         // transient of the rate time constant that a drift or creep then soaks up.
@@ -113,46 +120,12 @@ impl Structure {
         // The hysteretic state at the first sample; the linear blocks after it at rest there.
         let mut g = sh.g0.clamp(-1.0, 1.0) * sh.g0_scale(ctx.u_ref);
         let g_init = if g.is_finite() { g } else { 0.0 };
-        for (_, a, b) in &mut creep {
-            a.settle(v0);
-            b.settle(-g_init);
-        }
-        let k_dc = 1.0 + creep.iter().map(|c| c.0).sum::<f64>();
-        for (a, b) in mode.iter_mut().chain(mode2.iter_mut()) {
-            a.settle(k_dc * v0);
-            b.settle(-k_dc * g_init);
-        }
+        let mut after_v = blocks.start(v0, hold, no_lag);
+        let mut after_g = blocks.start(-g_init, hold, no_lag);
         let bound = 1e6 * (1.0 + ctx.u_ref) * (1.0 + u.iter().fold(0.0f64, |m, x| m.max(x.abs())));
         let mut v_prev = v0;
-        // Previous inputs of the linear blocks, for the hold (`block_hold`): the drive
-        // into the lag; without a lag, the hysteresis output into creep and modes (with a
-        // lag, their inputs are continuous and the exponential hold is exact).
-        let hold = sh.block_hold.clamp(0.0, 1.0);
-        let held = |x: f64, prev: &mut f64| {
-            let r = x - hold * (x - *prev);
-            *prev = x;
-            r
-        };
-        let hold_after = lag.is_none() && hold > 0.0;
-        let mut prev_u = u0;
-        let (mut prev_a0, mut prev_b0) = (v0, -g_init);
-        let (mut prev_am, mut prev_bm) = (k_dc * v0, -k_dc * g_init);
-        let step_mode = |m: &mut Mode, x: f64| {
-            if exp_tau.is_some() {
-                m.step_exp(x)
-            } else {
-                m.step(x)
-            }
-        };
         for k in 0..n {
-            let mut x = u[k];
-            if let Some(l) = &mut lag {
-                x = l.step(held(x, &mut prev_u));
-            }
-            if let Some(l) = &mut lag2 {
-                x = l.step(x);
-            }
-            let v = drive(x);
+            let v = drives.next().unwrap_or(v0);
             let dv = v - v_prev;
             let rr = rate.as_mut().map_or(0.0, |r| {
                 r.step(if k == 0 { rate0 } else { dv.abs() / dt }) / ctx.rate_ref
@@ -180,38 +153,7 @@ impl Structure {
                 g = advance(g, dv);
             }
             v_prev = v;
-            let (mut a, mut b) = (vv, -g);
-            let (a0, b0) = if hold_after && !creep.is_empty() {
-                (held(a, &mut prev_a0), held(b, &mut prev_b0))
-            } else {
-                (a, b)
-            };
-            for (gain, ca, cb) in &mut creep {
-                let (la, lb) = if exp_tau.is_some() {
-                    (ca.step_exp(a0), cb.step_exp(b0))
-                } else {
-                    (ca.step(a0), cb.step(b0))
-                };
-                a += *gain * la;
-                b += *gain * lb;
-            }
-            if hold_after && (mode.is_some() || mode2.is_some()) {
-                a = held(a, &mut prev_am);
-                b = held(b, &mut prev_bm);
-            }
-            match (&mut mode, &mut mode2) {
-                (Some((ma, mb)), Some((na, nb))) => {
-                    let (a1, b1) = (step_mode(ma, a), step_mode(mb, b));
-                    let (a2, b2) = (step_mode(na, a), step_mode(nb, b));
-                    a = (1.0 - share) * a1 + share * a2;
-                    b = (1.0 - share) * b1 + share * b2;
-                }
-                (Some((ma, mb)), None) | (None, Some((ma, mb))) => {
-                    a = step_mode(ma, a);
-                    b = step_mode(mb, b);
-                }
-                (None, None) => {}
-            }
+            let (a, b) = (after_v.step(vv), after_g.step(-g));
             if !(finite_shape && a.is_finite() && b.is_finite() && g.abs() <= bound) {
                 status = Status::Unstable { at: k };
                 cv[k..].fill(0.0);
@@ -268,6 +210,7 @@ impl Structure {
         }
         let drift = self.fixed_columns(0).len() - 1;
         let first = match self.placement {
+            Placement::After if self.ctx.pi.is_some() => 1 + self.pi_operators(),
             Placement::After => 3,
             Placement::Feedback => 2,
         };
@@ -394,5 +337,141 @@ impl Structure {
         let mut cols = vec![out];
         cols.extend(tail);
         (cols, Status::Ok)
+    }
+}
+
+/// `x` held back by `hold` of a sample toward the previous input `prev` (a D/A that updates
+/// at the sample), which becomes `x`.
+fn held(hold: f64, x: f64, prev: &mut f64) -> f64 {
+    let r = x - hold * (x - *prev);
+    *prev = x;
+    r
+}
+
+/// The linear blocks after the hysteresis (creep elements, modes) of one shape, before any
+/// column has passed through them: the chain is linear after its core, so each regressor
+/// column runs through its own copy ([`Self::start`]).
+struct AfterBlocks {
+    creep: Vec<(f64, LowPass)>,
+    mode: Option<Mode>,
+    mode2: Option<Mode>,
+    share: f64,
+    exp: bool,
+    k_dc: f64,
+}
+
+/// One column's copy of [`AfterBlocks`], with its hold state.
+struct After {
+    creep: Vec<(f64, LowPass)>,
+    mode: Option<Mode>,
+    mode2: Option<Mode>,
+    share: f64,
+    exp: bool,
+    /// Hold of the blocks' inputs (`block_hold`), without a lag before them.
+    hold: Option<f64>,
+    prev_in: f64,
+    prev_mode: f64,
+}
+
+impl AfterBlocks {
+    /// A copy at rest at the column's first value `x0` (the modes at the creep's DC gain
+    /// times it); `hold` applies where `no_lag` (a lag's output is continuous).
+    fn start(&self, x0: f64, hold: f64, no_lag: bool) -> After {
+        let mut creep = self.creep.clone();
+        for (_, c) in &mut creep {
+            c.settle(x0);
+        }
+        let (mut mode, mut mode2) = (self.mode.clone(), self.mode2.clone());
+        for m in mode.iter_mut().chain(mode2.iter_mut()) {
+            m.settle(self.k_dc * x0);
+        }
+        After {
+            creep,
+            mode,
+            mode2,
+            share: self.share,
+            exp: self.exp,
+            hold: (no_lag && hold > 0.0).then_some(hold),
+            prev_in: x0,
+            prev_mode: self.k_dc * x0,
+        }
+    }
+}
+
+impl After {
+    /// The blocks' output at the next sample, whose input is `x`.
+    #[inline]
+    fn step(&mut self, x: f64) -> f64 {
+        let mut a = x;
+        let a0 = match self.hold {
+            Some(h) if !self.creep.is_empty() => held(h, a, &mut self.prev_in),
+            _ => a,
+        };
+        for (gain, c) in &mut self.creep {
+            let l = if self.exp { c.step_exp(a0) } else { c.step(a0) };
+            a += *gain * l;
+        }
+        if let Some(h) = self.hold
+            && (self.mode.is_some() || self.mode2.is_some())
+        {
+            a = held(h, a, &mut self.prev_mode);
+        }
+        let exp = self.exp;
+        let step_mode = |m: &mut Mode, x: f64| if exp { m.step_exp(x) } else { m.step(x) };
+        match (&mut self.mode, &mut self.mode2) {
+            (Some(m), Some(m2)) => {
+                let (a1, a2) = (step_mode(m, a), step_mode(m2, a));
+                a = (1.0 - self.share) * a1 + self.share * a2;
+            }
+            (Some(m), None) | (None, Some(m)) => a = step_mode(m, a),
+            (None, None) => {}
+        }
+        a
+    }
+}
+
+impl Structure {
+    /// The creep elements and modes of shape `sh`, discretised with the exponential hold
+    /// `exp_tau` of a lag before them.
+    fn after_blocks(&self, sh: &Shape, exp_tau: Option<f64>) -> AfterBlocks {
+        let dt = self.ctx.dt;
+        let creep: Vec<(f64, LowPass)> = match self.form(Effect::Creep) {
+            Some(form) => sh
+                .creep_elements(form, &self.ctx)
+                .into_iter()
+                .filter(|(g, _)| *g != 0.0)
+                .map(|(g, tau)| {
+                    let l = LowPass::new(tau, dt);
+                    (
+                        g,
+                        match exp_tau {
+                            Some(t) => l.with_exp_hold(t),
+                            None => l,
+                        },
+                    )
+                })
+                .collect(),
+            None => Vec::new(),
+        };
+        let mk_mode = |f: f64, zeta: f64| {
+            let m = Mode::new(f, zeta.max(0.0), dt);
+            match exp_tau {
+                Some(t) => m.with_exp_hold(t),
+                None => m,
+            }
+        };
+        let mode = (self.has(Effect::Dynamics) && sh.mode_p > 0.0)
+            .then(|| mk_mode(1.0 / (2.0 * std::f64::consts::PI * sh.mode_p), sh.zeta));
+        let share = sh.mode2_share.clamp(0.0, 1.0);
+        let mode2 = (self.has(Effect::Dynamics) && sh.mode2_hz.is_finite() && share > 0.0)
+            .then(|| mk_mode(sh.mode2_hz, sh.mode2_zeta));
+        AfterBlocks {
+            k_dc: 1.0 + creep.iter().map(|c| c.0).sum::<f64>(),
+            creep,
+            mode,
+            mode2,
+            share,
+            exp: exp_tau.is_some(),
+        }
     }
 }

@@ -18,6 +18,44 @@ pub struct Context {
     pub hold: Hold,
     /// The fewest RK4 sub-steps per sample of that integrator ([`MIN_SUBSTEPS`]).
     pub min_substeps: usize,
+    /// The hysteresis at the chain's core: `None` Bouc-Wen, else a Prandtl-Ishlinskii
+    /// model with fixed thresholds ([`PiCore`]).
+    pub pi: Option<PiCore>,
+}
+
+/// A Prandtl-Ishlinskii core: `operators` plays with thresholds `r_i = i/operators ·
+/// half_range` (the training input's half-range), their weights linear coefficients like
+/// Bouc-Wen's `d_e` and `α`, so the chain's variable projection fits them exactly.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PiCore {
+    pub operators: usize,
+    pub half_range: f64,
+}
+
+/// Most operators of a PI core (each one a column simulated through the chain).
+pub const MAX_PI_OPERATORS: usize = 32;
+
+impl PiCore {
+    /// `operators` plays over the half-range of the training inputs.
+    pub fn new(operators: usize, inputs: &[&[f64]]) -> PiCore {
+        let (lo, hi) = inputs
+            .iter()
+            .flat_map(|u| u.iter())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        PiCore {
+            operators: operators.clamp(1, MAX_PI_OPERATORS),
+            half_range: if hi > lo { 0.5 * (hi - lo) } else { 1.0 },
+        }
+    }
+
+    /// The thresholds, `r_0 = 0` (the linear term) first.
+    pub fn thresholds(&self) -> Vec<f64> {
+        (0..self.operators)
+            .map(|i| self.half_range * i as f64 / self.operators as f64)
+            .collect()
+    }
 }
 
 /// Where the `dynamics` mode sits relative to the hysteresis.
@@ -68,6 +106,7 @@ impl Context {
             t_ref: (n as f64 * dt).max(dt),
             hold: Hold::Zoh,
             min_substeps: MIN_SUBSTEPS,
+            pi: None,
         }
     }
 
@@ -101,6 +140,12 @@ impl Context {
     /// The same scales with inputs moving between samples by `hold`.
     pub fn with_hold(mut self, hold: Hold) -> Context {
         self.hold = hold;
+        self
+    }
+
+    /// The same scales with a Prandtl-Ishlinskii core.
+    pub fn with_pi(mut self, pi: Option<PiCore>) -> Context {
+        self.pi = pi;
         self
     }
 

@@ -77,6 +77,24 @@ impl Effect {
         }
     }
 
+    /// Why the effect is not searched on a Prandtl-Ishlinskii core (`None`: it is). The
+    /// PI model has its own forms of these two, linear in their weights (the asymmetric
+    /// and the rate-dependent PI, [`crate::physics::prandtl_ishlinskii::PiForm`]): a
+    /// Bouc-Wen-style extension on top would be a second version of the same physics.
+    pub fn not_for_pi(self) -> Option<&'static str> {
+        match self {
+            Effect::Asymmetry => Some(
+                "the PI model's own asymmetric form (a polynomial in the input) is its \
+                 asymmetry; fit it with the PI fitting objectives",
+            ),
+            Effect::RateDependence => Some(
+                "the PI model's own rate-dependent form (weights growing with |du/dt|) is \
+                 its rate dependence; fit it with the PI fitting objectives",
+            ),
+            _ => None,
+        }
+    }
+
     /// Whether the effect belongs to one recording (a sensor's offset drift), refitted on
     /// every record, rather than to the actuator (carried over with the same parameters).
     pub fn per_record(self) -> bool {

@@ -51,7 +51,7 @@ mod shape;
 mod solve;
 pub use records::{MAX_RECORDS, same_interval};
 
-pub use context::{Context, Placement};
+pub use context::{Context, MAX_PI_OPERATORS, PiCore, Placement};
 pub use effect::{Effect, Form, ParamSpec};
 use shape::{Shape, log_creep_state_taus, log_creep_taus, shift, spline_segments};
 pub use solve::Projection;
@@ -103,6 +103,13 @@ impl LinearFit {
     }
 }
 
+/// Names of a PI core's play weights (`w0` the linear term's).
+const PI_WEIGHTS: [&str; MAX_PI_OPERATORS] = [
+    "w0", "w1", "w2", "w3", "w4", "w5", "w6", "w7", "w8", "w9", "w10", "w11", "w12", "w13", "w14",
+    "w15", "w16", "w17", "w18", "w19", "w20", "w21", "w22", "w23", "w24", "w25", "w26", "w27",
+    "w28", "w29", "w30", "w31",
+];
+
 impl Structure {
     /// The plain model plus `effects` (any order, duplicates ignored) in their default
     /// forms; `fixed_n` pins the Bouc-Wen exponent (e.g. 1) instead of fitting it.
@@ -153,6 +160,14 @@ impl Structure {
                 }
             }
         }
+        // A PI core has its own asymmetric and rate-dependent forms ([`Effect::not_for_pi`])
+        // and no restoring-force form.
+        let placement = if ctx.pi.is_some() {
+            parts.retain(|(e, _)| e.not_for_pi().is_none());
+            Placement::After
+        } else {
+            placement
+        };
         parts.sort_by_key(|p| p.0);
         parts.dedup_by_key(|p| p.0);
         let dt = ctx.dt;
@@ -167,6 +182,8 @@ impl Structure {
         let hi = (0.5 / dt).log10();
         let lo_hz = (0.005 / dt).log10();
         let mut specs = match placement {
+            // The PI core's thresholds are fixed and its weights linear: no shape.
+            Placement::After if ctx.pi.is_some() => Vec::new(),
             Placement::After => vec![
                 spec("log10_s", -2.0, 1.0, -0.5, None),
                 spec("w", 0.0, 1.5, 0.5, None),
@@ -193,12 +210,15 @@ impl Structure {
                 spec("fb_c", -4.0, 4.0, 0.0, None),
             ],
         };
-        if fixed_n.is_none() {
-            specs.push(spec("n", 0.5, 3.0, 1.0, None));
+        if ctx.pi.is_none() {
+            if fixed_n.is_none() {
+                specs.push(spec("n", 0.5, 3.0, 1.0, None));
+            }
+            // The hysteretic state at the first sample, as a fraction of its saturation
+            // level: a recording starts with a history the data do not show. (The PI
+            // operators start demagnetised, as the PI model defines them.)
+            specs.push(spec("g0_frac", -1.0, 1.0, 0.0, None));
         }
-        // The hysteretic state at the first sample, as a fraction of its saturation level:
-        // a recording starts with a history the data do not show.
-        specs.push(spec("g0_frac", -1.0, 1.0, 0.0, None));
         // A nuisance of the recording set-up, not of the actuator: where the input acts
         // within a sample. A drive linear between samples acts half a sample earlier than
         // the zero-order hold the blocks assume; the sensor may sample anywhere in the
@@ -333,7 +353,11 @@ impl Structure {
     /// `bouc-wen+creep+dynamics`; the feedback placement reads `dynamics(feedback)`, a form
     /// other than the effect's default `creep[logarithmic]`.
     pub fn label(&self) -> String {
-        let mut s = String::from("bouc-wen");
+        let mut s = String::from(if self.ctx.pi.is_some() {
+            "pi"
+        } else {
+            "bouc-wen"
+        });
         for (e, f) in self.effects.iter().zip(&self.forms) {
             s.push('+');
             s.push_str(e.name());
@@ -378,6 +402,12 @@ impl Structure {
     /// [`Self::linear_names`] of one record.
     fn own_linear_names(&self) -> Vec<&'static str> {
         let mut v = match self.placement {
+            Placement::After if self.ctx.pi.is_some() => {
+                let m = self.pi_operators();
+                let mut v = vec![PI_WEIGHTS[0], "d0"];
+                v.extend(&PI_WEIGHTS[1..m]);
+                v
+            }
             Placement::After => vec!["d_e", "d0", "alpha"],
             Placement::Feedback => vec!["scale", "d0"],
         };
@@ -413,6 +443,13 @@ impl Structure {
             v.push("drift_settling");
         }
         v
+    }
+
+    /// Play operators of a PI core (0 for Bouc-Wen).
+    pub fn pi_operators(&self) -> usize {
+        self.ctx
+            .pi
+            .map_or(0, |p| p.operators.clamp(1, MAX_PI_OPERATORS))
     }
 
     /// Indices (in [`LinearFit::coef`]) of coefficients that belong to a record's own
@@ -636,6 +673,18 @@ impl Structure {
             }
         };
         let mut v: Vec<(String, f64)> = match self.placement {
+            Placement::After if self.ctx.pi.is_some() => {
+                // Weights with the threshold each play turns at, then the offset.
+                let r = self.ctx.pi.map(|p| p.thresholds()).unwrap_or_default();
+                let w = |i: usize| coef.get(if i == 0 { 0 } else { i + 1 }).copied();
+                let mut v = Vec::new();
+                for (i, ri) in r.iter().enumerate() {
+                    v.push((format!("w{i}"), w(i).unwrap_or(0.0)));
+                    v.push((format!("r{i}"), *ri));
+                }
+                v.push(("d0".into(), coef.get(1).copied().unwrap_or(0.0)));
+                v
+            }
             Placement::After => {
                 let sigma = (sh.s * self.ctx.u_ref).powf(-sh.n);
                 let alpha = coef.get(2).copied().unwrap_or(0.0);

@@ -1092,3 +1092,57 @@ fn projected_fit_equals_least_squares_on_all_columns() {
         assert!((0.5 * dot(&r, &r) / fit.cost - 1.0).abs() < 1e-12);
     }
 }
+
+/// A PI core without extensions is the plain PI model ([`PiModel`], computed by its own
+/// code), and its linear fit finds that model's weights and offset exactly.
+#[test]
+fn a_pi_core_is_the_plain_pi_model_and_fits_its_weights() {
+    use crate::physics::prandtl_ishlinskii::{PiForm, PiModel};
+    let dt = 1e-3;
+    let u: Vec<f64> = (0..3000)
+        .map(|k| {
+            let t = k as f64 * dt;
+            2.0 + 1.8 * (0.5 + 0.5 * (1.3 * t).cos()) * (9.0 * t).sin()
+        })
+        .collect();
+    let core = PiCore::new(6, &[&u]);
+    let pi = PiModel {
+        form: PiForm::Plain,
+        thresholds: core.thresholds(),
+        weights: vec![3.0, 1.0, 0.5, 0.0, 0.25, 0.1],
+        rate_weights: vec![],
+        poly: vec![],
+        offset: -4.0,
+        input_offset: 0.0,
+    };
+    let st = Structure::new(
+        &[],
+        None,
+        Context::from_training(&u, dt).with_pi(Some(core)),
+    );
+    assert_eq!(st.label(), "pi");
+    assert!(
+        st.specs()
+            .iter()
+            .all(|s| s.name != "n" && s.name != "g0_frac")
+    );
+    let theta: Vec<f64> = st.specs().iter().map(|s| s.neutral).collect();
+    let mut coef = vec![pi.weights[0], pi.offset];
+    coef.extend(&pi.weights[1..]);
+    let (y, status) = st.simulate(&theta, &coef, &u);
+    assert_eq!(status, Status::Ok);
+    let want = pi.simulate(&u, dt);
+    let worst = y
+        .iter()
+        .zip(&want)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-12, "{worst}");
+    let fit = st.fit_linear(&theta, &u, &want);
+    for (a, b) in fit.coef.iter().zip(&coef) {
+        assert!((a - b).abs() < 1e-8, "{:?} vs {coef:?}", fit.coef);
+    }
+    // Effects the PI model has its own forms of are not added to it.
+    let st2 = st.extended(Effect::Asymmetry).extended(Effect::Creep);
+    assert_eq!(st2.effects(), &[Effect::Creep]);
+}
