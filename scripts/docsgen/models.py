@@ -122,7 +122,7 @@ def render(d):
         "Beside the operator models the dissertation set aside (extended Table 3.4, "
         "held-out free-run RMSE, CMA-ES medians), Bouc-Wen is the better model "
         f"{'on ' + ' and '.join(wins) if wins else 'nowhere'}"
-        + (f", not {' or '.join(loses)}" if loses else "")
+        + (f", not on {' or '.join(loses)}" if loses else "")
         + f": on the measured P-885 stack a plain Prandtl-Ishlinskii model "
         f"({sig(va[('pi-plain', 'p885')])} um) is "
         f"{versus(va[('pi-plain', 'p885')], va[('bw', 'p885')])} Bouc-Wen "
@@ -148,7 +148,7 @@ def render(d):
            f"(P-885: {sig(va[('rbf', 'p885')])} um)." if rbf_never else "."),
         f"So the dissertation's preference for Bouc-Wen over operator models is borne out "
         f"{'on ' + ' and '.join(wins) if wins else 'nowhere'} (held-out, CMA-ES)"
-        + (f", not {' or '.join(loses)}" if loses else "")
+        + (f", not on {' or '.join(loses)}" if loses else "")
         + "; on the real stack a plain PI model, whose best weights are one non-negative "
         "least-squares solve instead of a search, predicts the held-out record "
         + {"as good as": "as well as"}.get(v := versus(va[("pi-plain", "p885")],
