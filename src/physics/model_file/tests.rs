@@ -83,9 +83,11 @@ fn bad_files_are_refused_with_the_field() {
         f(&mut v);
         refused(&v)
     };
-    let e = with(&|v| v["kind"] = "preisach".into());
+    let e = with(&|v| v["kind"] = "hammerstein".into());
     assert!(
-        e.contains("kind") && e.contains("preisach") && e.contains("bouc-wen, rbf, structure"),
+        e.contains("kind")
+            && e.contains("hammerstein")
+            && e.contains("bouc-wen, rbf, structure, pi, preisach"),
         "{e}"
     );
     let e = with(&|v| v["version"] = 2.into());
