@@ -6,7 +6,9 @@ use crate::base::limits;
 use crate::data::recording::{Columns, Delimiter, ReadOptions};
 use crate::diagnose::recordings::{Files, diagnose_files};
 use crate::diagnose::{Options, proof};
-use crate::physics::structure::{Effect, Hold, MAX_PI_OPERATORS, MIN_SUBSTEPS};
+use crate::physics::structure::{
+    Effect, Hold, MAX_PI_OPERATORS, MAX_PREISACH_LEVELS, MIN_SUBSTEPS,
+};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -27,19 +29,27 @@ pub struct DiagnoseArgs {
     #[arg(long, conflicts_with = "validate_periodic")]
     pub holdout: Option<f64>,
     /// Model family: bouc-wen (n fitted, kept only if BIC says so), bouc-wen-n1 (n = 1),
-    /// or pi (a plain Prandtl-Ishlinskii core: --pi-operators plays with fixed thresholds,
+    /// pi (a plain Prandtl-Ishlinskii core: --pi-operators plays with fixed thresholds,
     /// their weights fitted by least squares like Bouc-Wen's gains; delay, input-lag and
-    /// saturation act on its drive, creep, dynamics and offset-drift after it). With pi,
-    /// asymmetry and rate-dependence are not searched: the PI model has its own asymmetric
-    /// and rate-dependent forms, so a second version would duplicate them; nor is the
-    /// feedback placement of dynamics. Default: bouc-wen; bouc-wen-n1 for --proof (the
-    /// twin's n is 1; ten times faster).
-    #[arg(long, value_parser = ["bouc-wen", "bouc-wen-n1", "pi"])]
+    /// saturation act on its drive, creep, dynamics and offset-drift after it), or preisach
+    /// (a discretised Preisach core the same way: --preisach-levels levels over the training
+    /// input's range, one relay weight per cell of the threshold plane). With pi or
+    /// preisach, asymmetry and rate-dependence are not searched: the PI model has its own
+    /// asymmetric and rate-dependent forms, the Preisach plane makes any asymmetric loop and
+    /// is rate-independent, so a second version would duplicate them; nor is the feedback
+    /// placement of dynamics. Default: bouc-wen; bouc-wen-n1 for --proof (the twin's n is
+    /// 1; ten times faster).
+    #[arg(long, value_parser = ["bouc-wen", "bouc-wen-n1", "pi", "preisach"])]
     pub model: Option<String>,
     /// Plays of the pi core (thresholds uniform over the training input's half-range).
     #[arg(long, default_value_t = 10,
           value_parser = clap::value_parser!(u32).range(1..=MAX_PI_OPERATORS as i64))]
     pub pi_operators: u32,
+    /// Levels of the preisach core: levels·(levels+1)/2 relays (2 levels are 3 relays, 7
+    /// are 28), thresholds at the centres of equal cells over the training input's range.
+    #[arg(long, default_value_t = 6,
+          value_parser = clap::value_parser!(u32).range(1..=MAX_PREISACH_LEVELS as i64))]
+    pub preisach_levels: u32,
     /// Time, input and output column names.
     #[arg(long, default_value = "t,u,y")]
     pub columns: String,
@@ -168,6 +178,7 @@ fn diagnose(a: DiagnoseArgs) -> Result<()> {
     let mut opts = Options {
         model,
         pi_operators: a.pi_operators as usize,
+        preisach_levels: a.preisach_levels as usize,
         seed: a.seed,
         effects: effects(&a.effects)?,
         bootstrap: a.bootstrap,

@@ -44,7 +44,8 @@ use crate::base::error::{Error, Result};
 use crate::base::standard_normal;
 use crate::data::recording::Recording;
 use crate::physics::structure::{
-    Context, Effect, Form, Hold, MAX_RECORDS, MIN_SUBSTEPS, ParamSpec, PiCore, Placement, Structure,
+    Context, CoreKind, Effect, Form, Hold, MAX_RECORDS, MIN_SUBSTEPS, ParamSpec, PiCore, Placement,
+    Structure,
 };
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
@@ -59,11 +60,14 @@ use std::sync::Arc;
 /// What the diagnosis does; the defaults are what `optbench diagnose` runs.
 #[derive(Clone, Debug)]
 pub struct Options {
-    /// Model family: `bouc-wen` (n fitted), `bouc-wen-n1` (n = 1) or `pi` (a
-    /// Prandtl-Ishlinskii core of [`Self::pi_operators`] plays, [`PiCore`]).
+    /// Model family: `bouc-wen` (n fitted), `bouc-wen-n1` (n = 1), `pi` (a
+    /// Prandtl-Ishlinskii core of [`Self::pi_operators`] plays, [`PiCore`]) or `preisach`
+    /// (a Preisach core of [`Self::preisach_levels`] levels).
     pub model: String,
     /// Plays of the `pi` core.
     pub pi_operators: usize,
+    /// Levels of the `preisach` core (`levels·(levels+1)/2` relays).
+    pub preisach_levels: usize,
     pub seed: u64,
     /// Extensions tried as candidates.
     pub effects: Vec<Effect>,
@@ -106,6 +110,7 @@ impl Default for Options {
         Options {
             model: "bouc-wen".into(),
             pi_operators: 10,
+            preisach_levels: 6,
             seed: 1,
             effects: Effect::ALL.to_vec(),
             bootstrap: 19,
@@ -155,26 +160,43 @@ impl Options {
         match self.model.as_str() {
             "bouc-wen" => Ok(None),
             // The PI core has no exponent; pinning it keeps the exponent search off.
-            "bouc-wen-n1" | "pi" => Ok(Some(1.0)),
+            "bouc-wen-n1" | "pi" | "preisach" => Ok(Some(1.0)),
             m => Err(Error::Input(format!(
-                "--model {m}: unknown; valid: bouc-wen, bouc-wen-n1, pi"
+                "--model {m}: unknown; valid: bouc-wen, bouc-wen-n1, pi, preisach"
             ))),
         }
     }
 
-    /// Whether the core is a Prandtl-Ishlinskii model.
+    /// Whether the core is linear in its weights (a Prandtl-Ishlinskii or Preisach model).
     pub fn is_pi(&self) -> bool {
-        self.model == "pi"
+        self.core_kind().is_some()
     }
 
-    /// The effects that do not apply to the model, each with why ([`Effect::not_for_pi`]).
-    pub fn not_applicable(&self) -> Vec<(Effect, &'static str)> {
-        if !self.is_pi() {
-            return Vec::new();
+    /// The kind of a linear-in-weights core (`None`: Bouc-Wen).
+    pub fn core_kind(&self) -> Option<CoreKind> {
+        match self.model.as_str() {
+            "pi" => Some(CoreKind::Plays),
+            "preisach" => Some(CoreKind::Relays),
+            _ => None,
         }
+    }
+
+    /// The core of the training inputs `inputs` (`None`: Bouc-Wen).
+    pub fn core(&self, inputs: &[&[f64]]) -> Option<PiCore> {
+        self.core_kind().map(|k| match k {
+            CoreKind::Plays => PiCore::new(self.pi_operators, inputs),
+            CoreKind::Relays => PiCore::preisach(self.preisach_levels, inputs),
+        })
+    }
+
+    /// The effects that do not apply to the model, each with why ([`Effect::not_for_core`]).
+    pub fn not_applicable(&self) -> Vec<(Effect, &'static str)> {
+        let Some(kind) = self.core_kind() else {
+            return Vec::new();
+        };
         Effect::ALL
             .iter()
-            .filter_map(|&e| e.not_for_pi().map(|why| (e, why)))
+            .filter_map(|&e| e.not_for_core(kind).map(|why| (e, why)))
             .collect()
     }
 
@@ -1907,12 +1929,7 @@ pub fn diagnose_with_tests(
     let ctx = Context::from_records(&inputs)
         .with_hold(opts.hold)
         .with_min_substeps(opts.min_substeps)
-        .with_pi(opts.is_pi().then(|| {
-            PiCore::new(
-                opts.pi_operators,
-                &inputs.iter().map(|r| r.0).collect::<Vec<_>>(),
-            )
-        }));
+        .with_pi(opts.core(&inputs.iter().map(|r| r.0).collect::<Vec<_>>()));
     let (train_noise, train_settled) = (tj.noise, tj.settled);
     let (validate_noise, validate_settled) = (vj.noise, vj.settled);
     let noise = (0.5 * (train_noise * train_noise + validate_noise * validate_noise)).sqrt();
@@ -1943,6 +1960,12 @@ pub fn diagnose_with_tests(
     // With n free, ask BIC whether n = 1 (the closed-form kernel, ten times faster) is as
     // good: keep n free only if it improves BIC by the margin.
     let mut n_choice = match fixed_n {
+        Some(_) if opts.core_kind() == Some(CoreKind::Relays) => format!(
+            "none: a Preisach core of {} relays on {} levels (thresholds fixed, weights \
+             fitted by least squares, unconstrained in sign)",
+            plain.pi_operators(),
+            plain.context().pi.map_or(0, |p| p.operators)
+        ),
         Some(_) if opts.is_pi() => format!(
             "none: a Prandtl-Ishlinskii core of {} plays (thresholds fixed, weights fitted \
              by least squares, unconstrained in sign)",

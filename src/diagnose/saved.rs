@@ -6,6 +6,7 @@ use crate::physics::model_file::{
     Integration, ModelFile, Named, Normalisation, Param, RecordState, StructureContext,
     StructureSpec, Units,
 };
+use crate::physics::structure::CoreKind;
 
 /// The validation record's own state, where it is one record at one interval.
 pub struct ValidationState {
@@ -117,15 +118,15 @@ pub fn model_file(f: &Fitted, units: [&str; 3], validation: Option<ValidationSta
         &format!(
             "{}: {} with the extensions `optbench diagnose` accepted (physics::structure), shape unit-free on the training data's context, linear coefficients ({}) in the recording's units",
             st.label(),
-            if ctx.pi.is_some() {
-                "a Prandtl-Ishlinskii core (plays with fixed thresholds)"
-            } else {
-                "Bouc-Wen"
+            match ctx.pi.map(|p| p.kind) {
+                Some(CoreKind::Plays) => "a Prandtl-Ishlinskii core (plays with fixed thresholds)",
+                Some(CoreKind::Relays) => "a Preisach core (relays with fixed thresholds)",
+                None => "Bouc-Wen",
             },
-            if ctx.pi.is_some() {
-                "play weights, offset, drift, creep states"
-            } else {
-                "gain, offset, hysteretic scale, drift, creep states"
+            match ctx.pi.map(|p| p.kind) {
+                Some(CoreKind::Plays) => "play weights, offset, drift, creep states",
+                Some(CoreKind::Relays) => "relay weights, offset, drift, creep states",
+                None => "gain, offset, hysteretic scale, drift, creep states",
             }
         ),
         Units {

@@ -256,7 +256,8 @@ pub struct StructureContext {
     pub t_ref: f64,
     pub hold: String,
     pub min_substeps: usize,
-    /// A Prandtl-Ishlinskii core (`diagnose --model pi`); absent: Bouc-Wen.
+    /// A Prandtl-Ishlinskii or Preisach core (`diagnose --model pi`, `preisach`); absent:
+    /// Bouc-Wen.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pi: Option<crate::physics::structure::PiCore>,
 }

@@ -3,6 +3,59 @@
 
 use super::*;
 use crate::physics::prandtl_ishlinskii::play;
+use crate::physics::preisach::{Preisach, PreisachGrid, PreisachStepper};
+
+/// A linear-in-weights core's operator outputs, sample by sample: the plays' outputs
+/// (starting at 0) or the relays' states (0/1, demagnetised at the first input).
+enum Core {
+    Plays { r: Vec<f64>, z: Vec<f64> },
+    Relays(PreisachStepper),
+}
+
+impl Core {
+    fn new(pi: &PiCore) -> Core {
+        match pi.kind {
+            CoreKind::Plays => {
+                let r = pi.thresholds();
+                let z = vec![0.0; r.len()];
+                Core::Plays { r, z }
+            }
+            CoreKind::Relays => {
+                let grid = pi.grid();
+                let weights = vec![0.0; grid.relays()];
+                Core::Relays(
+                    Preisach {
+                        grid,
+                        weights,
+                        offset: 0.0,
+                    }
+                    .stepper(),
+                )
+            }
+        }
+    }
+
+    /// Applies drive `v`; `out` gets one output per operator (relays in
+    /// [`PreisachGrid::index`] order).
+    fn step(&mut self, v: f64, out: &mut [f64]) {
+        match self {
+            Core::Plays { r, z } => {
+                for ((zi, &ri), o) in z.iter_mut().zip(r.iter()).zip(out.iter_mut()) {
+                    *zi = play(ri, *zi, v);
+                    *o = *zi;
+                }
+            }
+            Core::Relays(st) => {
+                st.step(v);
+                for (i, &on) in st.interface().iter().enumerate() {
+                    for j in 0..=i {
+                        out[PreisachGrid::index(i, j)] = if j < on { 1.0 } else { 0.0 };
+                    }
+                }
+            }
+        }
+    }
+}
 
 impl Structure {
     /// Simulates the regressor columns on input `u`: `[v, 1, -(1+ρr) α-free g]` after the
@@ -83,19 +136,19 @@ impl Structure {
             drive(x)
         });
         if let Some(pi) = self.ctx.pi {
-            let r = pi.thresholds();
-            let mut z = vec![0.0; r.len()];
-            let mut cols = vec![vec![0.0; n]; r.len()];
-            let mut after: Vec<After> = Vec::with_capacity(r.len());
+            let mut core = Core::new(&pi);
+            let mut z = vec![0.0; pi.columns()];
+            let mut cols = vec![vec![0.0; n]; z.len()];
+            let mut after: Vec<After> = Vec::with_capacity(z.len());
             for k in 0..n {
                 let v = drives.next().unwrap_or(v0);
                 let mut finite = finite_shape;
-                for (i, zi) in z.iter_mut().enumerate() {
-                    *zi = play(r[i], *zi, v);
+                core.step(v, &mut z);
+                for (i, &zi) in z.iter().enumerate() {
                     if k == 0 {
-                        after.push(blocks.start(*zi, hold, no_lag));
+                        after.push(blocks.start(zi, hold, no_lag));
                     }
-                    let x = after[i].step(*zi);
+                    let x = after[i].step(zi);
                     finite &= x.is_finite();
                     cols[i][k] = x;
                 }

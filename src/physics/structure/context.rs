@@ -1,6 +1,7 @@
 //! The scales of the training data, and where the hysteresis sits in the model.
 
 use super::*;
+use crate::physics::preisach::PreisachGrid;
 
 /// Scales of the training data that make the shape parameters unit-free.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -18,22 +19,44 @@ pub struct Context {
     pub hold: Hold,
     /// The fewest RK4 sub-steps per sample of that integrator ([`MIN_SUBSTEPS`]).
     pub min_substeps: usize,
-    /// The hysteresis at the chain's core: `None` Bouc-Wen, else a Prandtl-Ishlinskii
-    /// model with fixed thresholds ([`PiCore`]).
+    /// The hysteresis at the chain's core: `None` Bouc-Wen, else a Prandtl-Ishlinskii or
+    /// Preisach model with fixed thresholds ([`PiCore`]).
     pub pi: Option<PiCore>,
 }
 
-/// A Prandtl-Ishlinskii core: `operators` plays with thresholds `r_i = i/operators ·
-/// half_range` (the training input's half-range), their weights linear coefficients like
+/// A core whose output is linear in its weights: a Prandtl-Ishlinskii model (`operators`
+/// plays with thresholds `r_i = i/operators · half_range`, the training input's half-range)
+/// or a discretised Preisach model ([`CoreKind::Relays`]: `operators` levels over the
+/// training input's range, [`PreisachGrid`]). The weights are linear coefficients like
 /// Bouc-Wen's `d_e` and `α`, so the chain's variable projection fits them exactly.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PiCore {
     pub operators: usize,
     pub half_range: f64,
+    /// Plays or relays; absent in files written before the Preisach core: plays.
+    #[serde(default)]
+    pub kind: CoreKind,
+    /// The training input's minimum (the Preisach grid's lower end; unused by plays).
+    #[serde(default)]
+    pub u_min: f64,
+}
+
+/// What a [`PiCore`]'s columns are.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CoreKind {
+    /// Play operators: a Prandtl-Ishlinskii model.
+    #[default]
+    Plays,
+    /// The relays of a Preisach model on `operators` levels.
+    Relays,
 }
 
 /// Most operators of a PI core (each one a column simulated through the chain).
 pub const MAX_PI_OPERATORS: usize = 32;
+
+/// Most levels of a Preisach core: `7·8/2 = 28` relays, within [`MAX_PI_OPERATORS`] columns.
+pub const MAX_PREISACH_LEVELS: usize = 7;
 
 impl PiCore {
     /// `operators` plays over the half-range of the training inputs.
@@ -44,9 +67,21 @@ impl PiCore {
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
                 (a.min(x), b.max(x))
             });
+        let varies = hi > lo;
         PiCore {
             operators: operators.clamp(1, MAX_PI_OPERATORS),
-            half_range: if hi > lo { 0.5 * (hi - lo) } else { 1.0 },
+            half_range: if varies { 0.5 * (hi - lo) } else { 1.0 },
+            kind: CoreKind::Plays,
+            u_min: if varies { lo } else { 0.0 },
+        }
+    }
+
+    /// A Preisach core of `levels` levels over the range of the training inputs.
+    pub fn preisach(levels: usize, inputs: &[&[f64]]) -> PiCore {
+        PiCore {
+            operators: levels.clamp(1, MAX_PREISACH_LEVELS),
+            kind: CoreKind::Relays,
+            ..PiCore::new(levels, inputs)
         }
     }
 
@@ -55,6 +90,30 @@ impl PiCore {
         (0..self.operators)
             .map(|i| self.half_range * i as f64 / self.operators as f64)
             .collect()
+    }
+
+    /// The Preisach grid of a relay core: `operators` levels over the training range.
+    pub fn grid(&self) -> PreisachGrid {
+        let levels = self.operators.clamp(1, MAX_PREISACH_LEVELS);
+        PreisachGrid::new(levels, self.u_min, self.u_min + 2.0 * self.half_range)
+            .or_else(|_| PreisachGrid::new(levels, 0.0, 1.0))
+            .expect("a unit range makes a grid")
+    }
+
+    /// The number of linear columns: one per play, or one per relay.
+    pub fn columns(&self) -> usize {
+        match self.kind {
+            CoreKind::Plays => self.operators.clamp(1, MAX_PI_OPERATORS),
+            CoreKind::Relays => self.grid().relays(),
+        }
+    }
+
+    /// The name in labels and reports.
+    pub fn name(&self) -> &'static str {
+        match self.kind {
+            CoreKind::Plays => "pi",
+            CoreKind::Relays => "preisach",
+        }
     }
 }
 

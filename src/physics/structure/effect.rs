@@ -95,6 +95,24 @@ impl Effect {
         }
     }
 
+    /// Why the effect is not searched on a core of `kind` (`None`: it is). The Preisach
+    /// model drops the same two as the PI model: its weight plane already shapes any
+    /// asymmetric loop, and it is rate-independent by definition.
+    pub fn not_for_core(self, kind: super::CoreKind) -> Option<&'static str> {
+        match (kind, self) {
+            (super::CoreKind::Plays, _) => self.not_for_pi(),
+            (super::CoreKind::Relays, Effect::Asymmetry) => Some(
+                "the Preisach weights over the (up, down) threshold plane already make any \
+                 asymmetric loop; a Bouc-Wen-style asymmetry on top would duplicate it",
+            ),
+            (super::CoreKind::Relays, Effect::RateDependence) => Some(
+                "the Preisach model is rate-independent by definition; a rate-dependent \
+                 Preisach form is not part of this core",
+            ),
+            _ => None,
+        }
+    }
+
     /// Whether the effect belongs to one recording (a sensor's offset drift), refitted on
     /// every record, rather than to the actuator (carried over with the same parameters).
     pub fn per_record(self) -> bool {

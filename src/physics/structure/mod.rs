@@ -51,7 +51,7 @@ mod shape;
 mod solve;
 pub use records::{MAX_RECORDS, same_interval};
 
-pub use context::{Context, MAX_PI_OPERATORS, PiCore, Placement};
+pub use context::{Context, CoreKind, MAX_PI_OPERATORS, MAX_PREISACH_LEVELS, PiCore, Placement};
 pub use effect::{Effect, Form, ParamSpec};
 use shape::{Shape, log_creep_state_taus, log_creep_taus, shift, spline_segments};
 pub use solve::Projection;
@@ -110,6 +110,16 @@ const PI_WEIGHTS: [&str; MAX_PI_OPERATORS] = [
     "w28", "w29", "w30", "w31",
 ];
 
+/// Names of a Preisach core's relay weights, `mu[i,j]` switching up at threshold `i` and
+/// down at `j`, in [`crate::physics::preisach::PreisachGrid::index`] order (as its
+/// `names`), for up to [`MAX_PREISACH_LEVELS`] levels.
+const PREISACH_WEIGHTS: [&str; MAX_PREISACH_LEVELS * (MAX_PREISACH_LEVELS + 1) / 2] = [
+    "mu[0,0]", "mu[1,0]", "mu[1,1]", "mu[2,0]", "mu[2,1]", "mu[2,2]", "mu[3,0]", "mu[3,1]",
+    "mu[3,2]", "mu[3,3]", "mu[4,0]", "mu[4,1]", "mu[4,2]", "mu[4,3]", "mu[4,4]", "mu[5,0]",
+    "mu[5,1]", "mu[5,2]", "mu[5,3]", "mu[5,4]", "mu[5,5]", "mu[6,0]", "mu[6,1]", "mu[6,2]",
+    "mu[6,3]", "mu[6,4]", "mu[6,5]", "mu[6,6]",
+];
+
 impl Structure {
     /// The plain model plus `effects` (any order, duplicates ignored) in their default
     /// forms; `fixed_n` pins the Bouc-Wen exponent (e.g. 1) instead of fitting it.
@@ -160,10 +170,10 @@ impl Structure {
                 }
             }
         }
-        // A PI core has its own asymmetric and rate-dependent forms ([`Effect::not_for_pi`])
-        // and no restoring-force form.
-        let placement = if ctx.pi.is_some() {
-            parts.retain(|(e, _)| e.not_for_pi().is_none());
+        // A PI or Preisach core has its own asymmetry and rate (in)dependence
+        // ([`Effect::not_for_core`]) and no restoring-force form.
+        let placement = if let Some(p) = ctx.pi {
+            parts.retain(|(e, _)| e.not_for_core(p.kind).is_none());
             Placement::After
         } else {
             placement
@@ -353,11 +363,7 @@ impl Structure {
     /// `bouc-wen+creep+dynamics`; the feedback placement reads `dynamics(feedback)`, a form
     /// other than the effect's default `creep[logarithmic]`.
     pub fn label(&self) -> String {
-        let mut s = String::from(if self.ctx.pi.is_some() {
-            "pi"
-        } else {
-            "bouc-wen"
-        });
+        let mut s = String::from(self.ctx.pi.map_or("bouc-wen", |p| p.name()));
         for (e, f) in self.effects.iter().zip(&self.forms) {
             s.push('+');
             s.push_str(e.name());
@@ -404,8 +410,12 @@ impl Structure {
         let mut v = match self.placement {
             Placement::After if self.ctx.pi.is_some() => {
                 let m = self.pi_operators();
-                let mut v = vec![PI_WEIGHTS[0], "d0"];
-                v.extend(&PI_WEIGHTS[1..m]);
+                let names: &[&'static str] = match self.ctx.pi.map(|p| p.kind) {
+                    Some(CoreKind::Relays) => &PREISACH_WEIGHTS,
+                    _ => &PI_WEIGHTS,
+                };
+                let mut v = vec![names[0], "d0"];
+                v.extend(&names[1..m]);
                 v
             }
             Placement::After => vec!["d_e", "d0", "alpha"],
@@ -445,11 +455,9 @@ impl Structure {
         v
     }
 
-    /// Play operators of a PI core (0 for Bouc-Wen).
+    /// Operators of a PI or Preisach core, one linear column each (0 for Bouc-Wen).
     pub fn pi_operators(&self) -> usize {
-        self.ctx
-            .pi
-            .map_or(0, |p| p.operators.clamp(1, MAX_PI_OPERATORS))
+        self.ctx.pi.map_or(0, |p| p.columns())
     }
 
     /// Indices (in [`LinearFit::coef`]) of coefficients that belong to a record's own
@@ -674,13 +682,29 @@ impl Structure {
         };
         let mut v: Vec<(String, f64)> = match self.placement {
             Placement::After if self.ctx.pi.is_some() => {
-                // Weights with the threshold each play turns at, then the offset.
-                let r = self.ctx.pi.map(|p| p.thresholds()).unwrap_or_default();
+                // Weights with the threshold(s) each operator turns at, then the offset.
                 let w = |i: usize| coef.get(if i == 0 { 0 } else { i + 1 }).copied();
                 let mut v = Vec::new();
-                for (i, ri) in r.iter().enumerate() {
-                    v.push((format!("w{i}"), w(i).unwrap_or(0.0)));
-                    v.push((format!("r{i}"), *ri));
+                match self.ctx.pi {
+                    Some(p) if p.kind == CoreKind::Relays => {
+                        let grid = p.grid();
+                        let t = grid.thresholds();
+                        for i in 0..t.len() {
+                            for j in 0..=i {
+                                let k = crate::physics::preisach::PreisachGrid::index(i, j);
+                                v.push((format!("mu[{i},{j}]"), w(k).unwrap_or(0.0)));
+                                v.push((format!("up[{i},{j}]"), t[i]));
+                                v.push((format!("down[{i},{j}]"), t[j]));
+                            }
+                        }
+                    }
+                    p => {
+                        let r = p.map(|p| p.thresholds()).unwrap_or_default();
+                        for (i, ri) in r.iter().enumerate() {
+                            v.push((format!("w{i}"), w(i).unwrap_or(0.0)));
+                            v.push((format!("r{i}"), *ri));
+                        }
+                    }
                 }
                 v.push(("d0".into(), coef.get(1).copied().unwrap_or(0.0)));
                 v

@@ -1093,18 +1093,38 @@ fn projected_fit_equals_least_squares_on_all_columns() {
     }
 }
 
+/// Three seconds of a 9 rad/s sine about `centre`, its amplitude beating between 0 and
+/// `amp`: nested minor loops for a hysteresis core.
+fn beating(centre: f64, amp: f64, dt: f64) -> Vec<f64> {
+    (0..3000)
+        .map(|k| {
+            let t = k as f64 * dt;
+            centre + amp * (0.5 + 0.5 * (1.3 * t).cos()) * (9.0 * t).sin()
+        })
+        .collect()
+}
+
+/// The plain structure on a linear-in-weights `core` over `u`, with its neutral shape; it
+/// is labelled `label` and has neither a Bouc-Wen exponent nor initial state.
+fn core_structure(u: &[f64], dt: f64, core: PiCore, label: &str) -> (Structure, Vec<f64>) {
+    let st = Structure::new(&[], None, Context::from_training(u, dt).with_pi(Some(core)));
+    assert_eq!(st.label(), label);
+    assert!(
+        st.specs()
+            .iter()
+            .all(|s| s.name != "n" && s.name != "g0_frac")
+    );
+    let theta = st.specs().iter().map(|s| s.neutral).collect();
+    (st, theta)
+}
+
 /// A PI core without extensions is the plain PI model ([`PiModel`], computed by its own
 /// code), and its linear fit finds that model's weights and offset exactly.
 #[test]
 fn a_pi_core_is_the_plain_pi_model_and_fits_its_weights() {
     use crate::physics::prandtl_ishlinskii::{PiForm, PiModel};
     let dt = 1e-3;
-    let u: Vec<f64> = (0..3000)
-        .map(|k| {
-            let t = k as f64 * dt;
-            2.0 + 1.8 * (0.5 + 0.5 * (1.3 * t).cos()) * (9.0 * t).sin()
-        })
-        .collect();
+    let u = beating(2.0, 1.8, dt);
     let core = PiCore::new(6, &[&u]);
     let pi = PiModel {
         form: PiForm::Plain,
@@ -1115,18 +1135,7 @@ fn a_pi_core_is_the_plain_pi_model_and_fits_its_weights() {
         offset: -4.0,
         input_offset: 0.0,
     };
-    let st = Structure::new(
-        &[],
-        None,
-        Context::from_training(&u, dt).with_pi(Some(core)),
-    );
-    assert_eq!(st.label(), "pi");
-    assert!(
-        st.specs()
-            .iter()
-            .all(|s| s.name != "n" && s.name != "g0_frac")
-    );
-    let theta: Vec<f64> = st.specs().iter().map(|s| s.neutral).collect();
+    let (st, theta) = core_structure(&u, dt, core, "pi");
     let mut coef = vec![pi.weights[0], pi.offset];
     coef.extend(&pi.weights[1..]);
     let (y, status) = st.simulate(&theta, &coef, &u);
@@ -1145,4 +1154,71 @@ fn a_pi_core_is_the_plain_pi_model_and_fits_its_weights() {
     // Effects the PI model has its own forms of are not added to it.
     let st2 = st.extended(Effect::Asymmetry).extended(Effect::Creep);
     assert_eq!(st2.effects(), &[Effect::Creep]);
+}
+
+/// A Preisach core without extensions is the Preisach model of its grid ([`Preisach`],
+/// computed by its own code, demagnetised at the first input), and its linear fit
+/// reproduces a record that model made. (The relay columns need not be independent, so
+/// the output, not each weight, is what the fit must recover.)
+#[test]
+fn a_preisach_core_is_the_preisach_model_and_fits_its_records() {
+    use crate::physics::preisach::{Preisach, PreisachGrid};
+    let dt = 1e-3;
+    let u = beating(1.0, 1.5, dt);
+    let core = PiCore::preisach(5, &[&u]);
+    let grid = core.grid();
+    assert_eq!(grid, PreisachGrid::for_input(5, &u).unwrap());
+    assert_eq!(core.columns(), 15);
+    let weights: Vec<f64> = (0..15).map(|k| 0.1 + 0.05 * (k % 4) as f64).collect();
+    let model = Preisach {
+        grid,
+        weights: weights.clone(),
+        offset: -0.7,
+    };
+    let (st, theta) = core_structure(&u, dt, core, "preisach");
+    let names = st.linear_names();
+    assert_eq!(names[..3], ["mu[0,0]", "d0", "mu[1,0]"]);
+    assert_eq!(names.len(), 16);
+    let mut coef = vec![weights[0], model.offset];
+    coef.extend(&weights[1..]);
+    let (y, status) = st.simulate(&theta, &coef, &u);
+    assert_eq!(status, Status::Ok);
+    let want = model.simulate(&u, dt);
+    let worst = |a: &[f64]| {
+        a.iter()
+            .zip(&want)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+    };
+    assert!(worst(&y) < 1e-12, "{}", worst(&y));
+    let fit = st.fit_linear(&theta, &u, &want);
+    let (refit, _) = st.simulate(&theta, &fit.coef, &u);
+    assert!(worst(&refit) < 1e-9, "{}", worst(&refit));
+    // Each relay's parameters name its weight and its (up, down) thresholds.
+    let p = st.named_params(&theta, &coef);
+    let t = model.grid.thresholds();
+    let get = |n: &str| p.iter().find(|(k, _)| k == n).map(|x| x.1);
+    assert_eq!(get("mu[3,1]"), Some(weights[PreisachGrid::index(3, 1)]));
+    assert_eq!(get("up[3,1]"), Some(t[3]));
+    assert_eq!(get("down[3,1]"), Some(t[1]));
+    // The same extensions as a PI core are left out.
+    let st2 = st
+        .extended(Effect::Asymmetry)
+        .extended(Effect::RateDependence)
+        .extended(Effect::Creep);
+    assert_eq!(st2.effects(), &[Effect::Creep]);
+}
+
+/// The Preisach core's static weight names are the grid's own, and a structure file
+/// written before the Preisach core (no `kind`) still reads as a PI core.
+#[test]
+fn preisach_names_match_the_grid_and_old_files_read_as_pi() {
+    use crate::physics::preisach::PreisachGrid;
+    let g = PreisachGrid::new(MAX_PREISACH_LEVELS, 0.0, 1.0).unwrap();
+    let mut names = crate::physics::prandtl_ishlinskii::LinearInWeights::names(&g);
+    names.pop();
+    assert_eq!(names, PREISACH_WEIGHTS);
+    let old: PiCore = serde_json::from_str(r#"{"operators":6,"half_range":2.0}"#).unwrap();
+    assert_eq!(old.kind, CoreKind::Plays);
+    assert_eq!(old.columns(), 6);
 }
