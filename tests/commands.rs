@@ -94,7 +94,7 @@ fn choices_are_refused_by_the_parser_with_the_possible_values() {
             &["--hold", "cubic", "bandlimited", "auto"],
         ),
         (
-            &["diagnose", "--proof", "--model", "preisach"],
+            &["diagnose", "--proof", "--model", "hammerstein"],
             &["--model", "bouc-wen-n1"],
         ),
         (

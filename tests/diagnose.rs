@@ -292,9 +292,9 @@ fn command_writes_json_and_figures_and_refuses_bad_input() {
                 "--validate",
                 "validate.csv",
                 "--model",
-                "preisach",
+                "hammerstein",
             ],
-            "invalid value 'preisach' for '--model <MODEL>'",
+            "invalid value 'hammerstein' for '--model <MODEL>'",
         ),
         (
             vec![

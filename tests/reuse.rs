@@ -442,8 +442,12 @@ fn bad_model_files_are_refused_with_file_and_field() {
     let cases: Vec<(&str, Edit, Vec<&str>)> = vec![
         (
             "kind",
-            Box::new(|v| v["kind"] = "preisach".into()),
-            vec!["kind", "preisach", "valid: bouc-wen, rbf, structure"],
+            Box::new(|v| v["kind"] = "hammerstein".into()),
+            vec![
+                "kind",
+                "hammerstein",
+                "valid: bouc-wen, rbf, structure, pi, preisach",
+            ],
         ),
         (
             "version",
