@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{ok, optbench, read_json};
+use common::{fit_metric, ok, optbench, read_json};
 use optbench::base::TrialSeed;
 use optbench::data::recording::Recording;
 use optbench::objective::Objective;
@@ -100,19 +100,6 @@ fn write_csv(path: &Path, r: &Recording) {
         s += &format!("{},{},{}\n", r.t[k], r.u[k], r.y[k]);
     }
     std::fs::write(path, s).unwrap();
-}
-
-/// A metric of `fit.json` by name.
-fn fit_metric(out: &Path, name: &str) -> f64 {
-    let j = read_json(&out.join("fit.json"));
-    j["metrics"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|m| m["name"] == name)
-        .unwrap_or_else(|| panic!("no {name} in {j}"))["value"]
-        .as_f64()
-        .unwrap()
 }
 
 /// RMS of the residual column of a predicted-output CSV.

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{optbench, read_json, refused};
+use common::{fit_metric, optbench, read_json, refused};
 use std::path::Path;
 
 /// Runs optbench in `dir`, asserts success, returns stdout.
@@ -41,19 +41,6 @@ fn twin_csv(dir: &Path, name: &str, signal: &str, seconds: &str) {
         dir,
     );
     std::fs::rename(dir.join("twin/twin.csv"), dir.join(format!("{name}.csv"))).unwrap();
-}
-
-/// A metric of `fit.json` by name.
-fn fit_metric(out: &Path, name: &str) -> f64 {
-    let j = read_json(&out.join("fit.json"));
-    j["metrics"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|m| m["name"] == name)
-        .unwrap_or_else(|| panic!("no {name} in {j}"))["value"]
-        .as_f64()
-        .unwrap()
 }
 
 /// RMS of the residual column of a predicted-output CSV from row `skip` on, and the

@@ -18,6 +18,7 @@
 //! a feedforward is a known trajectory, and without this one-sample preview a perfect inverse
 //! would still lag by 1 ms (0.016 mm peak on a 10 Hz, 0.25 mm sinusoid).
 
+use super::model::rms_diff;
 use super::pid::{IncrementalPid, PidGains};
 use crate::base::TrialSeed;
 use crate::base::error::{Error, Result};
@@ -200,11 +201,6 @@ impl BoucWenModel {
             .map(|&x| st.step_with(&k, x / self.u_scale) * self.y_scale)
             .collect()
     }
-}
-
-fn rms_diff(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len().max(1) as f64;
-    (a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / n).sqrt()
 }
 
 /// Default play operators of `ff-pi` (the linear term included).

@@ -329,7 +329,8 @@ impl ModelFitConfig {
     }
 }
 
-fn rms_diff(a: &[f64], b: &[f64]) -> f64 {
+/// RMS of `a − b` over the length of `a` (records of equal length here).
+pub(super) fn rms_diff(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().max(1) as f64;
     (a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / n).sqrt()
 }

@@ -190,6 +190,32 @@ impl Datasets {
             .collect()
     }
 
+    /// Costs J = Σe²/2 over every training sample shown as RMSE in the training units:
+    /// the presentation every free-run fit shares.
+    pub(super) fn rmse_presentation(&self) -> Presentation {
+        let t = self.train();
+        Presentation {
+            label: format!("train RMSE{}", t.unit_suffix()),
+            kind: PresentationKind::RmseFromHalfSse {
+                samples: self.train_samples(),
+                scale: t.y_scale,
+            },
+        }
+    }
+
+    /// `<set> RMSE` and `<set> max error` of the normalised model output `output(k)` on
+    /// every set `k`, in the recording's units.
+    pub(super) fn free_run_metrics(&self, output: impl Fn(usize) -> Vec<f64>) -> Vec<Metric> {
+        let unit = self.train().unit_suffix();
+        let mut m = Vec::new();
+        for (k, (set, d)) in self.sets().enumerate() {
+            let (max, rms) = errors(&d.y, &output(k), 0, d.y_scale);
+            m.push(Metric::new(format!("{set} RMSE{unit}"), rms));
+            m.push(Metric::new(format!("{set} max error{unit}"), max));
+        }
+        m
+    }
+
     /// Refuses sets sampled at another interval than the first training record's, for a
     /// discrete-time model (whose lags are samples).
     fn one_interval(&self, model: &str) -> Result<()> {
@@ -221,7 +247,7 @@ pub(super) fn hold_finite(out: &mut [f64]) {
 }
 
 /// Max |e| and RMS of `model - measured` from `start`, in physical units.
-pub(super) fn errors(meas: &[f64], model: &[f64], start: usize, scale: f64) -> (f64, f64) {
+fn errors(meas: &[f64], model: &[f64], start: usize, scale: f64) -> (f64, f64) {
     let e = rbf::fit_errors(meas, model, start);
     (e.max_abs * scale, e.rms * scale)
 }
@@ -932,25 +958,11 @@ impl Objective for BoucWenFit {
     }
 
     fn presentation(&self) -> Option<Presentation> {
-        let t = self.data.train();
-        Some(Presentation {
-            label: format!("train RMSE{}", t.unit_suffix()),
-            kind: PresentationKind::RmseFromHalfSse {
-                samples: self.data.train_samples(),
-                scale: t.y_scale,
-            },
-        })
+        Some(self.data.rmse_presentation())
     }
 
     fn metrics(&self, p: &[f64]) -> Vec<Metric> {
-        let unit = self.data.train().unit_suffix();
-        let mut m = Vec::new();
-        for (k, (set, d)) in self.data.sets().enumerate() {
-            let (max, rms) = errors(&d.y, &self.simulate(p, k), 0, d.y_scale);
-            m.push(Metric::new(format!("{set} RMSE{unit}"), rms));
-            m.push(Metric::new(format!("{set} max error{unit}"), max));
-        }
-        m
+        self.data.free_run_metrics(|k| self.simulate(p, k))
     }
 
     fn as_fit(&self) -> Option<&dyn FitView> {

@@ -20,8 +20,8 @@
 //! least-squares optimum lies outside that box fails with the coefficient named, so the
 //! reported optimum is always one the optimizers can reach.
 
-use super::hysteresis::{Datasets, FitView, errors, hold_finite, units_of};
-use super::{Bounds, Metric, Objective, Presentation, PresentationKind};
+use super::hysteresis::{Datasets, FitView, hold_finite, units_of};
+use super::{Bounds, Metric, Objective, Presentation};
 use crate::base::error::{Error, Result};
 use crate::base::lstsq::nnls;
 use crate::data::recording::Recording;
@@ -327,17 +327,6 @@ impl OperatorFit {
             self.cap
         }
     }
-
-    fn presentation_of(&self) -> Presentation {
-        let t = self.data.train();
-        Presentation {
-            label: format!("train RMSE{}", t.unit_suffix()),
-            kind: PresentationKind::RmseFromHalfSse {
-                samples: self.data.train_samples(),
-                scale: t.y_scale,
-            },
-        }
-    }
 }
 
 impl Objective for OperatorFit {
@@ -374,21 +363,16 @@ impl Objective for OperatorFit {
     }
 
     fn presentation(&self) -> Option<Presentation> {
-        Some(self.presentation_of())
+        Some(self.data.rmse_presentation())
     }
 
     /// RMSE and max error of the free run on every set; with a known optimum also the
     /// training RMSE above the optimum's (0 at it).
     fn metrics(&self, p: &[f64]) -> Vec<Metric> {
         let unit = self.data.train().unit_suffix();
-        let mut m = Vec::new();
-        for (k, (set, d)) in self.data.sets().enumerate() {
-            let (max, rms) = errors(&d.y, &self.output(p, k), 0, d.y_scale);
-            m.push(Metric::new(format!("{set} RMSE{unit}"), rms));
-            m.push(Metric::new(format!("{set} max error{unit}"), max));
-        }
+        let mut m = self.data.free_run_metrics(|k| self.output(p, k));
         if let Some((j, _)) = &self.optimum {
-            let pr = self.presentation_of();
+            let pr = self.data.rmse_presentation();
             m.push(Metric::new(
                 format!("train RMSE above the optimum{unit}"),
                 pr.apply(self.evaluate(p)) - pr.apply(*j),

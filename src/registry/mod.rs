@@ -457,6 +457,17 @@ fn build_bouc_wen(p: &Params) -> Result<Arc<dyn Objective>, Error> {
     Ok(Arc::new(fit))
 }
 
+/// The search box of an operator fit's coefficients (PI, Preisach).
+const COEFFICIENT_BOUND: Spec = Spec {
+    name: "coefficient_bound",
+    kind: Kind::Float {
+        min: f64::MIN_POSITIVE,
+        max: MAX_MAGNITUDE,
+    },
+    default: D::Float(4.0),
+    help: "search box of each coefficient: |coefficient| x its column's RMS <= this, in units of the normalised output (non-negative weights from 0); a search of the weights refuses a box that misses the exact optimum",
+};
+
 const PI_PARAMS: &[Spec] = recording_params![
     Spec {
         name: "form",
@@ -476,15 +487,7 @@ const PI_PARAMS: &[Spec] = recording_params![
         default: D::Str("weights"),
         help: "weights = thresholds fixed uniform, coefficients searched (a convex problem: its exact least-squares optimum is known and reported); all = thresholds too (n increments in [0.05, 1], r_i = r_max x cumulative share: ordered by construction; no known optimum)",
     },
-    Spec {
-        name: "coefficient_bound",
-        kind: Kind::Float {
-            min: f64::MIN_POSITIVE,
-            max: MAX_MAGNITUDE
-        },
-        default: D::Float(4.0),
-        help: "search box of each coefficient: |coefficient| x its column's RMS <= this, in units of the normalised output (non-negative weights from 0); the weights search refuses a box that misses the optimum",
-    },
+    COEFFICIENT_BOUND,
 ];
 
 fn build_pi(p: &Params) -> Result<Arc<dyn Objective>, Error> {
@@ -513,15 +516,7 @@ const PREISACH_PARAMS: &[Spec] = recording_params![
         default: D::Int(10),
         help: "cells of the relay grid over the training input's range: levels (levels+1)/2 relay weights and an offset",
     },
-    Spec {
-        name: "coefficient_bound",
-        kind: Kind::Float {
-            min: f64::MIN_POSITIVE,
-            max: MAX_MAGNITUDE
-        },
-        default: D::Float(4.0),
-        help: "search box of each coefficient: |coefficient| x its column's RMS <= this, in units of the normalised output (relay weights from 0); a box that misses the exact optimum is refused",
-    },
+    COEFFICIENT_BOUND,
 ];
 
 fn build_preisach(p: &Params) -> Result<Arc<dyn Objective>, Error> {

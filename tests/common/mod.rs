@@ -176,6 +176,19 @@ pub fn read_json(path: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
 
+/// A metric of `fit.json` by name.
+pub fn fit_metric(out: &Path, name: &str) -> f64 {
+    let j = read_json(&out.join("fit.json"));
+    j["metrics"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["name"] == name)
+        .unwrap_or_else(|| panic!("no {name} in {j}"))["value"]
+        .as_f64()
+        .unwrap()
+}
+
 /// `rec` written as lab software does: `;`-separated with decimal commas, time from `t0`
 /// printed with 9 decimals and off the grid by up to `jitter` s; `skip` leaves a sample
 /// out (a gap).
