@@ -197,11 +197,26 @@ pub trait Objective: Send + Sync {
         Vec::new()
     }
 
+    /// Its identity in a published benchmark suite (COCO's `bbob`), so that exports name it
+    /// as that suite's tools (cocopp, IOHanalyzer) expect; `None` for objectives of our own.
+    fn suite_id(&self) -> Option<SuiteId> {
+        None
+    }
+
     /// The fitting view of objectives that fit a model to a recording (for `optbench fit`
     /// plots and parameter tables); `None` for other objectives.
     fn as_fit(&self) -> Option<&dyn hysteresis::FitView> {
         None
     }
+}
+
+/// A member of a published benchmark suite: `function` and `instance` as the suite numbers
+/// them (COCO's `bbob`: functions 1-24, instances from 1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SuiteId {
+    pub suite: &'static str,
+    pub function: usize,
+    pub instance: usize,
 }
 
 /// A named number about a point (see [`Objective::metrics`]).
