@@ -191,7 +191,8 @@ fn an_external_run_is_reported_and_merged_beside_a_built_in_run() {
     );
     let provenance = common::read_json(&both.join("provenance.json"));
     assert_eq!(provenance["parts"].as_array().map(Vec::len), Some(2));
-    // Merging in the other order names the same cells.
+    // Merging in the other order names the same cells; the built-in run's shards merge
+    // with the external run in one call, to the same folder.
     ok(&optbench(
         &["merge", "ext", "builtin", "--out", "both2", "-q"],
         d,
@@ -199,6 +200,19 @@ fn an_external_run_is_reported_and_merged_beside_a_built_in_run() {
     for id in ["PSO", "Random", "my-rs"] {
         assert_eq!(cells(&summary(&d.join("both2")), id), cells(&merged, id));
     }
+    for k in ["1/2", "2/2"] {
+        let out = format!("shard{}", &k[..1]);
+        ok(&optbench(
+            &["run", "s.toml", "--shard", k, "--out", &out, "-q"],
+            d,
+        ));
+    }
+    ok(&optbench(
+        &["merge", "shard1", "ext", "shard2", "--out", "both3", "-q"],
+        d,
+    ));
+    assert_eq!(summary(&d.join("both3")), merged);
+    assert_eq!(traces(&d.join("both3")), traces(&both));
 }
 
 #[test]
@@ -246,7 +260,7 @@ fn budgets_are_exact_and_batches_leave_the_trace_of_a_loop() {
         other => panic!("past the budget: {other:?}"),
     }
     assert!(matches!(
-        t.evaluate_many(&[x.clone()]),
+        t.evaluate_many(std::slice::from_ref(&x)),
         Err(EvalError::Exhausted { .. })
     ));
     assert_eq!(t.evaluations(), 300, "a refused evaluation is not counted");
