@@ -398,10 +398,22 @@ fn bad_calls_suites_and_merges_are_refused() {
         Err(EvalError::Shape(m)) => assert!(m.contains("point 1 of the batch has 4"), "{m}"),
         other => panic!("a ragged batch: {other:?}"),
     }
+    // A coordinate that is not a number is refused, in a batch too; outside the box is
+    // evaluated (sphere is defined everywhere).
+    match t.evaluate(&[f64::NAN, 0.0, 0.0]) {
+        Err(EvalError::NotFinite(m)) => {
+            assert!(m.contains("coordinate 0 of point 0 is NaN"), "{m}")
+        }
+        other => panic!("a NaN coordinate: {other:?}"),
+    }
+    match t.evaluate_many(&[vec![0.0; 3], vec![0.0, f64::INFINITY, 0.0]]) {
+        Err(EvalError::NotFinite(m)) => {
+            assert!(m.contains("coordinate 1 of point 1 is inf"), "{m}")
+        }
+        other => panic!("an infinite coordinate: {other:?}"),
+    }
     assert_eq!(t.evaluations(), 0, "refused points are not counted");
-    // Non-finite answers never reach the caller or the results as NaN.
-    let v = t.evaluate(&[f64::NAN, 0.0, 0.0]).unwrap();
-    assert!(!v.is_nan());
+    assert_eq!(t.evaluate(&[10.0, 0.0, 0.0]).unwrap(), 100.0);
     let t2 = run.start(1).unwrap();
     let err = run.finish(t2).err().unwrap().to_string();
     assert!(err.contains("has no evaluation"), "{err}");
