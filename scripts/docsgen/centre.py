@@ -18,6 +18,7 @@ FUNCTIONS = {"griewank-2d": "Griewank", "schwefel-2d": "Schwefel"}
 # An objective id is FUNCTION[-shift|-rot]-iN (suites/functions-shifted.toml).
 VARIANTS = [("", "as the formula defines it"), ("-shift", "minimiser moved"),
             ("-rot", "moved and rotated")]
+FIGURE = "convergence_griewank-2d-shift-i1.png"
 FRAGMENTS = ["centre-setup", "centre-table", "centre-ranking", "centre-readme"]
 VOLATILE = [r'"wall_s": [0-9.e+-]+']
 
@@ -57,6 +58,7 @@ def collect(ctx):
                          for obj, rows in dissertation_tables(ctx).items()},
         "cells": cells,
         "holm": holm,
+        "figures": {FIGURE: ctx.figure(out / "plots" / FIGURE, FIGURE)},
     }
 
 
