@@ -34,7 +34,7 @@ fn bad_keys_are_refused_with_file_line_and_what_to_write() {
         (
             "kind = \"griewank\"\ndim = 2\nrotate = \"yes\"",
             "`rotate`",
-            "bool",
+            "true | false",
         ),
         (
             "kind = \"griewank\"\ndim = 2\nshift = \"random\"\ninstance = 0",

@@ -326,8 +326,12 @@ impl Function {
             ));
         }
         let (a, fmin) = kind.argmin_and_min(bounds.dim());
-        // The known minimum only counts when the minimiser lies inside the box.
-        let argmin = Some(vec![a; bounds.dim()]).filter(|x| bounds.contains(x));
+        // The known minimum only counts when the minimiser lies inside the box, and for
+        // Schwefel when the box lies inside [-500, 500]: beyond, its formula goes lower.
+        let (lo, hi) = kind.default_domain();
+        let within = (0..bounds.dim()).all(|i| bounds.lower()[i] >= lo && bounds.upper()[i] <= hi);
+        let argmin = Some(vec![a; bounds.dim()])
+            .filter(|x| bounds.contains(x) && (kind != TestFunction::Schwefel || within));
         Ok(Function {
             kind,
             optimum: argmin.as_ref().map(|_| fmin),
@@ -779,6 +783,18 @@ mod tests {
         // Without the wrap a shifted Schwefel would go below its minimum in the box.
         let plain = Function::standard(TestFunction::Schwefel, 1).unwrap();
         assert!(plain.kind.value(&[-555.0]) < SCHWEFEL_MIN_PER_DIM);
+        // So the formula on a wider box has no known optimum, and on a narrower one that
+        // holds the minimiser it keeps it.
+        let wide = Function::new(
+            TestFunction::Schwefel,
+            Bounds::uniform(1, -600.0, 600.0).unwrap(),
+        );
+        assert_eq!(wide.unwrap().optimum(), None);
+        let narrow = Function::new(
+            TestFunction::Schwefel,
+            Bounds::uniform(1, 0.0, 500.0).unwrap(),
+        );
+        assert_eq!(narrow.unwrap().optimum(), Some(SCHWEFEL_MIN_PER_DIM));
     }
 
     #[test]
