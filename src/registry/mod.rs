@@ -5,7 +5,7 @@ use crate::base::limits::{self, MAX_DIM, MAX_MAGNITUDE, MAX_POPULATION, MAX_SAMP
 use crate::base::params::{Default as D, Kind, Params, Spec, probability};
 use crate::data::recording::{Delimiter, ReadOptions, Recording};
 use crate::harness::OptimizerConfig;
-use crate::objective::functions::{Function, TestFunction};
+use crate::objective::functions::{Function, Instance, MAX_ROTATED_DIM, TestFunction};
 use crate::objective::hysteresis::{BoucWenFit, BoucWenScheme, RbfFit};
 use crate::objective::operator::{OperatorFit, OperatorSearch};
 use crate::objective::source::{SimOptions, Source};
@@ -73,6 +73,27 @@ const FUNCTION_PARAMS: &[Spec] = &[
         default: D::Derived("the function's customary domain"),
         help: "upper bound of every variable",
     },
+    Spec {
+        name: "shift",
+        kind: Kind::Choice(&["none", "random"]),
+        default: D::Str("none"),
+        help: "random: the minimiser moves to a point drawn for the instance in the central 80 % of the box (Schwefel's formula is wrapped into [-500, 500], so its minimum stays -418.98 d)",
+    },
+    Spec {
+        name: "rotate",
+        kind: Kind::Bool,
+        default: D::Bool(false),
+        help: "true: the function is rotated about its minimiser by a random orthogonal matrix drawn for the instance (dim <= 500)",
+    },
+    Spec {
+        name: "instance",
+        kind: Kind::Int {
+            min: 1,
+            max: i64::MAX,
+        },
+        default: D::Int(1),
+        help: "which shift and rotation: drawn from (function, dim, instance) only, so instance N is the same problem in every suite with the same box",
+    },
 ];
 
 fn build_function(kind: TestFunction, p: &Params) -> Result<Arc<dyn Objective>, Error> {
@@ -80,8 +101,20 @@ fn build_function(kind: TestFunction, p: &Params) -> Result<Arc<dyn Objective>, 
     let lower = p.opt_float("lower").unwrap_or(lo);
     let upper = p.opt_float("upper").unwrap_or(hi);
     let bounds = Bounds::uniform(p.usize("dim"), lower, upper).map_err(|e| p.error("lower", e))?;
+    let inst = Instance {
+        number: p.int("instance") as u64,
+        shift: p.str("shift") == "random",
+        rotate: p.bool("rotate"),
+    };
     let f = Function::new(kind, bounds).map_err(|e| p.error("dim", e))?;
-    Ok(Arc::new(f))
+    let key = if inst.rotate && f.dim() > MAX_ROTATED_DIM {
+        "rotate"
+    } else {
+        "instance"
+    };
+    Ok(Arc::new(
+        f.with_instance(inst).map_err(|e| p.error(key, e))?,
+    ))
 }
 
 macro_rules! function_kind {

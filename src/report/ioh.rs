@@ -89,12 +89,26 @@ pub struct IohObjective<'a> {
     pub optimum: Option<f64>,
 }
 
-/// What identifies an objective's instance: None for a test function on its customary
-/// domain (instance 1), else the text its number is derived from.
+/// What identifies an objective's instance: None for a test function as its formula
+/// defines it on its customary domain (instance 1), else the text its number is derived
+/// from: the box and, for a shifted or rotated function, its `shift`, `rotate` and
+/// `instance`, so a moved function never shares a number with the plain one.
 fn instance_key(kind: &str, params: &[(String, String)], bounds: (f64, f64)) -> Option<String> {
     match TestFunction::ALL.iter().find(|f| f.name() == kind) {
-        Some(f) if f.default_domain() == bounds => None,
-        Some(_) => Some(format!("{kind};box={:e},{:e}", bounds.0, bounds.1)),
+        Some(f) => {
+            let get = |k: &str| params.iter().find(|(n, _)| n == k).map(|(_, v)| v.as_str());
+            let moved =
+                get("shift").is_some_and(|v| v != "\"none\"") || get("rotate") == Some("true");
+            let mut key = (f.default_domain() != bounds)
+                .then(|| format!("{kind};box={:e},{:e}", bounds.0, bounds.1));
+            if moved {
+                let k = key.get_or_insert_with(|| kind.to_string());
+                for p in ["shift", "rotate", "instance"] {
+                    k.push_str(&format!(";{p}={}", get(p).unwrap_or("")));
+                }
+            }
+            key
+        }
         None => Some(
             std::iter::once(kind.to_string())
                 .chain(params.iter().map(|(k, v)| format!("{k}={v}")))
@@ -447,5 +461,37 @@ mod tests {
         let a = instance_key("bouc-wen", &p(&[("recording", "twin:chirp")]), (0.0, 1.0));
         let b = instance_key("bouc-wen", &p(&[("recording", "twin:sine")]), (0.0, 1.0));
         assert_ne!(instance_of(a.as_deref()), instance_of(b.as_deref()));
+    }
+
+    #[test]
+    fn moved_functions_never_share_the_plain_instance() {
+        let p = |shift: &str, rotate: &str, inst: &str| -> Vec<(String, String)> {
+            [("shift", shift), ("rotate", rotate), ("instance", inst)]
+                .iter()
+                .map(|(a, b)| (a.to_string(), b.to_string()))
+                .collect()
+        };
+        let dom = (-600.0, 600.0);
+        // The defaults are the plain function: instance 1, as before these keys existed.
+        assert_eq!(
+            instance_key("griewank", &p("\"none\"", "false", "1"), dom),
+            None
+        );
+        let keys = [
+            p("\"random\"", "false", "1"),
+            p("\"random\"", "false", "2"),
+            p("\"random\"", "true", "1"),
+            p("\"none\"", "true", "1"),
+        ];
+        let numbers: BTreeSet<u16> = keys
+            .iter()
+            .map(|k| instance_of(instance_key("griewank", k, dom).as_deref()))
+            .collect();
+        assert_eq!(numbers.len(), keys.len());
+        assert!(!numbers.contains(&1));
+        assert_eq!(
+            instance_key("griewank", &keys[2], (-1.0, 1.0)).as_deref(),
+            Some("griewank;box=-1e0,1e0;shift=\"random\";rotate=true;instance=1")
+        );
     }
 }
