@@ -17,9 +17,10 @@ use functions as raw;
 use instance::{MAX_BBOB_DIM, compute_fopt, compute_rotation, compute_xopt, instance_seed};
 use transform as t;
 
-/// The largest instance number accepted: seeds grow by 10^4 per instance and COCO's legacy
-/// generator divides them into a C `int`, exact up to about 2.7 x 10^14.
-pub const MAX_BBOB_INSTANCE: usize = 1_000_000;
+/// The largest instance number accepted: the IOH export numbers instances in 16 bits
+/// (COCO's own suites use instances up to 110). The seeds, 10^4 per instance, stay far
+/// inside the range where COCO's legacy generator is exact (its C `int` quotient).
+pub const MAX_BBOB_INSTANCE: usize = u16::MAX as usize;
 
 /// One BBOB problem: function 1-24, dimension, instance, on [-5, 5]^dim.
 #[derive(Debug, Clone)]
