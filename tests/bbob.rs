@@ -177,8 +177,13 @@ fn bad_keys_are_refused_with_what_to_do() {
 fn list_shows_the_bbob_kind() {
     let dir = tempfile::tempdir().unwrap();
     let text = common::ok(&common::optbench(&["list"], dir.path()));
-    assert!(text.contains("bbob"), "{text}");
-    assert!(text.contains("instance"), "{text}");
+    let bbob = text
+        .split("\nobjective `")
+        .find(|k| k.starts_with("bbob`"))
+        .unwrap_or_else(|| panic!("no bbob kind in:\n{text}"));
+    for key in ["| function ", "| dim ", "| instance "] {
+        assert!(bbob.contains(key), "{key} not in {bbob}");
+    }
 }
 
 /// The stored table against cocoex as installed now (skipped without cocoex).
