@@ -170,6 +170,7 @@ pub fn analyse(
         if of_obj.is_empty() {
             continue;
         }
+        // Each run's own optimum: with an `instances` list every trial has its instance's.
         let optimum = of_obj[0].optimum;
         let budget = of_obj.iter().map(|r| r.budget).max().unwrap_or(0);
         let fixed = fixed_budgets(budget);
@@ -185,17 +186,16 @@ pub fn analyse(
                 continue;
             }
             runs.sort_by_key(|r| r.trial);
-            let errors: Vec<f64> = runs.iter().map(|r| error_of(r.best, optimum)).collect();
+            let errors: Vec<f64> = runs.iter().map(|r| error_of(r.best, r.optimum)).collect();
             let mut rng = TrialSeed::derive(seed, &format!("report:{}", info.id), opt, 0).rng(0);
             let median_ci = bootstrap_median_ci(&errors, CI_LEVEL, RESAMPLES, &mut rng);
             let targets = info
                 .targets
                 .iter()
                 .map(|&t| {
-                    let threshold = optimum.unwrap_or(0.0) + t;
                     let rt: Vec<RunToTarget> = runs
                         .iter()
-                        .map(|r| RunToTarget::from_record(r, threshold))
+                        .map(|r| RunToTarget::from_record(r, r.optimum.unwrap_or(0.0) + t))
                         .collect();
                     ert(&rt)
                 })
@@ -207,7 +207,7 @@ pub fn analyse(
                     .map(|&b| {
                         let at: Vec<f64> = runs
                             .iter()
-                            .map(|r| error_of(best_at(&r.improvements, b), optimum))
+                            .map(|r| error_of(best_at(&r.improvements, b), r.optimum))
                             .collect();
                         describe(&at).median
                     })

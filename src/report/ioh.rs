@@ -85,8 +85,29 @@ pub struct IohObjective<'a> {
     pub fid: u16,
     pub dim: usize,
     pub instance: u16,
-    /// Subtracted from every value where known.
+    /// Subtracted from every value where known (each run's own: see [`Self::instances`]).
     pub optimum: Option<f64>,
+    /// A published suite's objective (COCO's BBOB) over an `instances` list: the instance
+    /// trial t ran is `instances[t mod n]`; empty: every trial ran `instance`.
+    pub instances: Vec<u16>,
+    /// The meta file's `suite`: `optbench`, or the published suite's name (`BBOB`).
+    pub suite: &'static str,
+}
+
+impl IohObjective<'_> {
+    /// The optimum subtracted from `r`'s values: its own where the objective's is known
+    /// (each instance has its own f_opt).
+    pub fn optimum_of(&self, r: &TrialRecord) -> Option<f64> {
+        self.optimum.map(|f| r.optimum.unwrap_or(f))
+    }
+
+    /// The instance trial `trial` ran.
+    pub fn instance_of(&self, trial: usize) -> u16 {
+        match self.instances.len() {
+            0 => self.instance,
+            n => self.instances[trial % n],
+        }
+    }
 }
 
 /// What identifies an objective's instance: None for a test function on its customary
@@ -122,6 +143,21 @@ pub fn objectives(suite: &Suite) -> Result<Vec<IohObjective<'_>>> {
     // Every objective gets an instance of its own, so `instances.csv` maps one to one.
     let mut taken: BTreeSet<(u16, usize, u16)> = BTreeSet::new();
     for o in &suite.objectives {
+        // COCO's functions keep COCO's numbers and instances (IOH numbers BBOB so).
+        if let Some(id) = o.objective.suite_id().filter(|id| id.suite == "bbob") {
+            let number = |i: usize| u16::try_from(i).unwrap_or(u16::MAX);
+            out.push(IohObjective {
+                id: &o.id,
+                kind: o.kind,
+                fid: number(id.function),
+                dim: o.objective.dim(),
+                instance: number(id.instance),
+                optimum: o.objective.optimum(),
+                instances: o.instances.iter().map(|(i, _)| number(*i)).collect(),
+                suite: "BBOB",
+            });
+            continue;
+        }
         let fid = function_id(o.kind)?;
         let dim = o.objective.dim();
         let b = o.objective.bounds();
@@ -148,6 +184,8 @@ pub fn objectives(suite: &Suite) -> Result<Vec<IohObjective<'_>>> {
             dim,
             instance,
             optimum: o.objective.optimum(),
+            instances: Vec::new(),
+            suite: "optbench",
         });
     }
     Ok(out)
@@ -182,11 +220,11 @@ fn dat_block(out: &mut String, r: &TrialRecord, optimum: Option<f64>) {
 /// One run's entry in the meta file.
 fn run_json(r: &TrialRecord, o: &IohObjective<'_>) -> serde_json::Value {
     json!({
-        "instance": o.instance,
+        "instance": o.instance_of(r.trial),
         "evals": r.evaluations,
         "best": {
             "evals": r.improvements.last().map(|l| l.0).unwrap_or(0),
-            "y": finite(exported(r.best, o.optimum)),
+            "y": finite(exported(r.best, o.optimum_of(r))),
             "x": r.best_x,
         },
         "trial": r.trial,
@@ -224,19 +262,19 @@ pub fn export(
     atomic_write(&dir.join("instances.csv"), csv.as_bytes())?;
 
     // Kinds in order of first appearance, dimensions in order of first appearance.
-    let mut kinds: Vec<(&str, u16)> = Vec::new();
+    let mut kinds: Vec<(&str, u16, &str)> = Vec::new();
     for o in objectives {
-        if !kinds.iter().any(|k| k.0 == o.kind) {
-            kinds.push((o.kind, o.fid));
+        if !kinds.iter().any(|k| k.0 == o.kind && k.1 == o.fid) {
+            kinds.push((o.kind, o.fid, o.suite));
         }
     }
     for &(opt, opt_kind) in optimizers {
-        for &(kind, fid) in &kinds {
+        for &(kind, fid, fsuite) in &kinds {
             let base = dir.join(opt);
             let data_dir = format!("data_f{fid}_{kind}");
             let mut scenarios = Vec::new();
             let mut dims: Vec<usize> = Vec::new();
-            for o in objectives.iter().filter(|o| o.kind == kind) {
+            for o in objectives.iter().filter(|o| o.kind == kind && o.fid == fid) {
                 if !dims.contains(&o.dim) {
                     dims.push(o.dim);
                 }
@@ -244,14 +282,17 @@ pub fn export(
             for dim in dims {
                 let mut dat = String::new();
                 let mut runs = Vec::new();
-                for o in objectives.iter().filter(|o| o.kind == kind && o.dim == dim) {
+                for o in objectives
+                    .iter()
+                    .filter(|o| o.kind == kind && o.fid == fid && o.dim == dim)
+                {
                     let mut of_obj: Vec<&TrialRecord> = records
                         .iter()
                         .filter(|r| *opt == r.optimizer && *o.id == r.objective)
                         .collect();
                     of_obj.sort_by_key(|r| r.trial);
                     for r in of_obj {
-                        dat_block(&mut dat, r, o.optimum);
+                        dat_block(&mut dat, r, o.optimum_of(r));
                         runs.push(run_json(r, o));
                     }
                 }
@@ -272,7 +313,7 @@ pub fn export(
             }
             let meta = json!({
                 "version": IOH_FORMAT,
-                "suite": "optbench",
+                "suite": fsuite,
                 "function_id": fid,
                 "function_name": kind,
                 "maximization": false,
@@ -340,6 +381,8 @@ mod tests {
                 dim,
                 instance,
                 optimum,
+                instances: Vec::new(),
+                suite: "optbench",
             }
         }
         let opt = Some(-837.9657745448674);

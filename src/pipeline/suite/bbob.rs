@@ -26,7 +26,13 @@ pub const FUNCTIONS: usize = 24;
 /// The instance list when the section names none.
 pub const DEFAULT_INSTANCES: &str = "1-15";
 /// Keys copied unchanged into every expanded entry.
-const PASSED_ON: &[&str] = &["budget", "budget_per_dim", "targets", "stop_at", "optimizers"];
+const PASSED_ON: &[&str] = &[
+    "budget",
+    "budget_per_dim",
+    "targets",
+    "stop_at",
+    "optimizers",
+];
 
 /// The id of function `f` in `dim` dimensions.
 pub fn objective_id(f: usize, dim: usize) -> String {
@@ -125,12 +131,26 @@ mod tests {
     fn the_section_expands_dimension_major_with_its_keys_passed_on() {
         let e = expanded("[bbob]\nfunctions = [3, 1]\ndimensions = [2, 10]\nbudget_per_dim = 50\n")
             .unwrap();
-        let ids: Vec<&str> = e.iter().map(|f| f["id"].get_ref().as_str().unwrap()).collect();
-        assert_eq!(ids, ["bbob-f03-d02", "bbob-f01-d02", "bbob-f03-d10", "bbob-f01-d10"]);
+        let ids: Vec<&str> = e
+            .iter()
+            .map(|f| f["id"].get_ref().as_str().unwrap())
+            .collect();
+        assert_eq!(
+            ids,
+            [
+                "bbob-f03-d02",
+                "bbob-f01-d02",
+                "bbob-f03-d10",
+                "bbob-f01-d10"
+            ]
+        );
         assert_eq!(e[2]["dim"].get_ref().as_integer(), Some(10));
         assert_eq!(e[2]["function"].get_ref().as_integer(), Some(3));
         assert_eq!(e[0]["budget_per_dim"].get_ref().as_integer(), Some(50));
-        assert_eq!(e[0]["instances"].get_ref().as_str(), Some(DEFAULT_INSTANCES));
+        assert_eq!(
+            e[0]["instances"].get_ref().as_str(),
+            Some(DEFAULT_INSTANCES)
+        );
         let all = expanded("[bbob]\ndimensions = \"5\"\ninstances = [1, 2]\n").unwrap();
         assert_eq!(all.len(), FUNCTIONS);
         assert_eq!(all[23]["id"].get_ref().as_str(), Some("bbob-f24-d05"));
@@ -140,12 +160,24 @@ mod tests {
     fn bad_sections_say_where_and_what() {
         let m = |t: &str| expanded(t).unwrap_err().to_string();
         let e = m("[bbob]\nfunctions = [1, 25]\ndimensions = [2]\n");
-        assert!(e.contains("s.toml:2") && e.contains("functions 1 to 24"), "{e}");
+        assert!(
+            e.contains("s.toml:2") && e.contains("functions 1 to 24"),
+            "{e}"
+        );
         let e = m("[bbob]\nfunctions = [1]\n");
-        assert!(e.contains("s.toml:1") && e.contains("without `dimensions`"), "{e}");
+        assert!(
+            e.contains("s.toml:1") && e.contains("without `dimensions`"),
+            "{e}"
+        );
         let e = m("[bbob]\ndimensions = [2]\n\ndims = 3\n");
-        assert!(e.contains("s.toml:4") && e.contains("unknown key `dims`"), "{e}");
+        assert!(
+            e.contains("s.toml:4") && e.contains("unknown key `dims`"),
+            "{e}"
+        );
         let e = m("[bbob]\ndimensions = [2]\ninstances = \"0-3\"\n");
-        assert!(e.contains("s.toml:3") && e.contains("`[bbob] instances`"), "{e}");
+        assert!(
+            e.contains("s.toml:3") && e.contains("`[bbob] instances`"),
+            "{e}"
+        );
     }
 }

@@ -115,7 +115,16 @@ mod tests {
         assert_eq!(list("\"1-3, 7 ,9-10\"").unwrap(), [1, 2, 3, 7, 9, 10]);
         assert_eq!(list("[4, 2]").unwrap(), [4, 2]);
         assert_eq!(list("\"5\"").unwrap(), [5]);
-        for bad in ["\"0-3\"", "\"3-1\"", "\"a\"", "[0]", "[1.5]", "[]", "2", "\"1-2000\""] {
+        for bad in [
+            "\"0-3\"",
+            "\"3-1\"",
+            "\"a\"",
+            "[0]",
+            "[1.5]",
+            "[]",
+            "2",
+            "\"1-2000\"",
+        ] {
             let m = list(bad).unwrap_err();
             assert!(m.contains("`instances`"), "{bad}: {m}");
         }
@@ -125,8 +134,14 @@ mod tests {
     #[test]
     fn budgets_come_from_the_entry_first_then_the_suite_per_dimension_or_not() {
         let none = (None, None);
-        assert_eq!(budget((Some((50, 3)), None), (Some((9, 1)), None), 5), Ok(50));
-        assert_eq!(budget((None, Some((100, 3))), (Some((9, 1)), None), 5), Ok(500));
+        assert_eq!(
+            budget((Some((50, 3)), None), (Some((9, 1)), None), 5),
+            Ok(50)
+        );
+        assert_eq!(
+            budget((None, Some((100, 3))), (Some((9, 1)), None), 5),
+            Ok(500)
+        );
         assert_eq!(budget(none, (None, Some((20, 1))), 10), Ok(200));
         assert_eq!(budget(none, (Some((7, 1)), None), 10), Ok(7));
         let (line, m) = budget((Some((1, 4)), Some((2, 5))), none, 2).unwrap_err();

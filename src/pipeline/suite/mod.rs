@@ -175,10 +175,8 @@ impl Suite {
         let st = SuiteText::new(path, text);
         let raw: RawSuite = st.parse()?;
         let Header { name, seed, trials } = st.header(&raw.name, &raw.seed, &raw.trials)?;
-        let spanned_int = |v: &Option<Spanned<i64>>| {
-            v.as_ref()
-                .map(|v| (*v.get_ref(), st.line(v.span().start)))
-        };
+        let spanned_int =
+            |v: &Option<Spanned<i64>>| v.as_ref().map(|v| (*v.get_ref(), st.line(v.span().start)));
         let suite_budget = (spanned_int(&raw.budget), spanned_int(&raw.budget_per_dim));
         if suite_budget.0.is_some() || suite_budget.1.is_some() {
             instances::budget((None, None), suite_budget, 1).map_err(|(l, m)| st.on(l, m))?;
@@ -257,8 +255,14 @@ impl Suite {
             };
             let id = id.unwrap_or_else(|| format!("{}-{}d", kind.name, objective.dim()));
             let id = st.check_id(&id, &mut ids, line, "objective", &[])?;
-            let budget = instances::budget(own_budget, suite_budget, objective.dim())
-                .map_err(|(l, m)| st.on(if l == 0 { line } else { l }, format!("objective `{id}`: {m}")))?;
+            let budget = instances::budget(own_budget, suite_budget, objective.dim()).map_err(
+                |(l, m)| {
+                    st.on(
+                        if l == 0 { line } else { l },
+                        format!("objective `{id}`: {m}"),
+                    )
+                },
+            )?;
             let targets = match own_targets {
                 Some((t, l)) => check_targets(&t).map_err(|m| st.on(l, m))?,
                 None => targets.clone(),
