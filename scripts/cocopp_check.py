@@ -135,10 +135,12 @@ def main():
                 problems.append(f"{opt} f{f} {d}-D: instances {list(ds.instancenumbers)}, "
                                 f"expected {inst}")
                 continue
-            if ds.nbRuns() != len(runs):
-                problems.append(f"{opt} f{f} {d}-D: {ds.nbRuns()} runs, expected {len(runs)}")
+            n = ds.nbRuns_raw  # as read; `evals` replicates runs to balance instances
+            if n != len(runs) or len(ds._maxevals) != len(runs):
+                problems.append(f"{opt} f{f} {d}-D: {n} runs, expected {len(runs)}")
+                continue
             for i, (_, _, evals, err) in enumerate(runs):
-                got_e, got_f = int(ds.maxevals[i]), float(ds.finalfunvals[i])
+                got_e, got_f = int(ds._maxevals[i]), float(ds.finalfunvals[i])
                 if got_e != evals:
                     problems.append(f"{opt} f{f} {d}-D run {i}: {got_e} evaluations, traces {evals}")
                 if abs(got_f - err) > 1e-9 * max(abs(err), 1e-300) and not (got_f == err):

@@ -119,6 +119,29 @@ fn a_bbob_section_runs_every_instance_and_exports_for_cocopp() {
     assert_eq!(cma.matches("% f evaluations").count(), 4);
     assert!(!cma.contains("instance = 7"));
     run_check_script("cocopp_check.py", &[&out]);
+    // The check can fail: a run dropped from an .info file is caught (or cocopp is missing).
+    let info_path = out.join("coco/CMA/bbobexp_f8.info");
+    let info = std::fs::read_to_string(&info_path).unwrap();
+    let cut = info.trim_end().rsplit_once(", ").unwrap().0.to_string() + "\n";
+    std::fs::write(&info_path, cut).unwrap();
+    let check = std::process::Command::new("python3")
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/scripts/cocopp_check.py"
+        ))
+        .arg(&out)
+        .output();
+    if let Ok(check) = check {
+        let err = String::from_utf8_lossy(&check.stderr);
+        match check.status.code() {
+            Some(3) => eprintln!("skipping the failing cocopp check: {err}"),
+            code => assert!(
+                code == Some(1) && err.contains("CMA f8 3-D: instances [1, 2, 3]"),
+                "{code:?} {err}"
+            ),
+        }
+    }
+    std::fs::write(&info_path, info).unwrap();
 
     // Resuming keeps each trial's instance: the same traces.
     ok(&optbench(

@@ -351,4 +351,39 @@ mod tests {
         assert_eq!(fixed_budgets(40_000), vec![400, 4000, 40_000]);
         assert_eq!(fixed_budgets(50), vec![1, 5, 50]);
     }
+
+    /// Trials of one objective that ran different instances (COCO's `instances`) are
+    /// measured against their own optimum: errors, targets and fixed budgets alike.
+    #[test]
+    fn each_trial_is_measured_against_its_own_optimum() {
+        let rec = |trial: usize, optimum: f64, best: f64| TrialRecord {
+            objective: "o".into(),
+            optimizer: "p".into(),
+            trial,
+            seed: String::new(),
+            budget: 10,
+            evaluations: 10,
+            best,
+            best_x: vec![],
+            optimum: Some(optimum),
+            stopped_at_target: false,
+            nonfinite: 0,
+            penalised: 0,
+            wall_s: 0.0,
+            improvements: vec![(1, best + 5.0), (4, best)],
+            checkpoints: vec![],
+        };
+        let info = ObjectiveInfo {
+            id: SafeName::new("o").unwrap(),
+            dim: 2,
+            targets: vec![1.0],
+            label: None,
+        };
+        let records = [rec(0, 10.0, 10.5), rec(1, -300.0, -299.0)];
+        let a = analyse("s", 1, &[info], &records, &TrialMetrics::new());
+        let cell = &a.objectives[0].cells[0];
+        assert_eq!(cell.errors, [0.5, 1.0]);
+        assert_eq!(cell.targets[0].successes, 2, "{:?}", cell.targets[0]);
+        assert_eq!(a.objectives[0].fixed_budget_medians[0], [5.75, 0.75]);
+    }
 }

@@ -415,7 +415,7 @@ const BBOB_GROUP: &str = "bbob";
 pub struct BbobEcdf {
     pub dim: usize,
     pub functions: usize,
-    /// Runs per optimizer (of the first).
+    /// Runs of the first optimizer (the figure's title).
     pub runs: usize,
     /// Largest budget / dim of the runs.
     pub budget_per_dim: f64,
@@ -492,7 +492,7 @@ fn bbob_markdown(ecdfs: &[BbobEcdf]) -> String {
                 e.dim.to_string(),
                 opt.clone(),
                 e.functions.to_string(),
-                (v.len() / 51 / e.functions.max(1)).to_string(),
+                (v.len() / coco::targets().len()).to_string(),
                 format!("{:.0}", e.budget_per_dim),
                 format!("{:.3}", e.reached(v)),
             ]);
@@ -503,7 +503,7 @@ fn bbob_markdown(ecdfs: &[BbobEcdf]) -> String {
             "dim",
             "optimizer",
             "functions",
-            "runs per function",
+            "runs",
             "budget / dim",
             "triples reached",
         ],
