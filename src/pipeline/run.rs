@@ -88,14 +88,18 @@ pub fn fingerprint(suite: &Suite, budget: Option<u64>) -> String {
 pub fn trial_key(suite: &Suite, t: &PlannedTrial) -> String {
     let obj = &suite.objectives[t.objective];
     let opt = &suite.optimizers[t.optimizer];
-    let params: String = obj
+    let mut params: String = obj
         .params
         .values()
         .iter()
         .map(|(k, v)| format!("{k}={v};"))
         .collect();
+    // `params` are the first instance's; the trial's own instance decides its result.
+    if let Some(n) = obj.instance_of(t.trial) {
+        params += &format!("trial instance={n};");
+    }
     let stop = obj
-        .stop_value()
+        .stop_value(t.trial)
         .map(|s| s.to_bits().to_string())
         .unwrap_or_default();
     let config = format!("{:?}", opt.config);

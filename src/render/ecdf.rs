@@ -30,6 +30,7 @@ struct Ecdf<'a> {
     title: &'a str,
     series: &'a [(String, Vec<f64>)],
     x_label: &'a str,
+    y_label: &'a str,
     x_span: (f64, f64),
 }
 
@@ -57,7 +58,7 @@ impl Figure for Ecdf<'_> {
             s,
             self.title,
             (&x, self.x_label),
-            (&y, "fraction of (trial, target) pairs reached"),
+            (&y, self.y_label),
             TICK_LINE,
         )?;
         let mut drawn = Vec::new();
@@ -106,6 +107,24 @@ pub fn ecdf(
     x_label: &str,
     x_span: (f64, f64),
 ) -> Result<()> {
+    ecdf_of(
+        path_stem,
+        title,
+        series,
+        (x_label, "fraction of (trial, target) pairs reached"),
+        x_span,
+    )
+}
+
+/// [`ecdf`] with its own y label, for values that count other things than (trial, target)
+/// pairs (COCO's aggregate over functions counts (function, instance, target) triples).
+pub fn ecdf_of(
+    path_stem: &Path,
+    title: &str,
+    series: &[(String, Vec<f64>)],
+    (x_label, y_label): (&str, &str),
+    x_span: (f64, f64),
+) -> Result<()> {
     font::register()?;
     render(
         path_stem,
@@ -113,6 +132,7 @@ pub fn ecdf(
             title,
             series,
             x_label,
+            y_label,
             x_span,
         },
     )

@@ -55,7 +55,7 @@ pub use axes::LOG_FLOOR_NO_POSITIVE;
 pub use boxplot::boxplot;
 pub use canvas::{HEIGHT, PNG_DPI, PNG_SCALE, PX_PER_INCH, WIDTH};
 pub use convergence::{ConvergenceSeries, convergence, convergence_series};
-pub use ecdf::{ecdf, runtimes};
+pub use ecdf::{ecdf, ecdf_of, runtimes};
 pub use lines::lines;
 pub use loops::loops;
 pub use measured::MEASURED;

@@ -170,6 +170,7 @@ pub fn analyse(
         if of_obj.is_empty() {
             continue;
         }
+        // Each run's own optimum: with an `instances` list every trial has its instance's.
         let optimum = of_obj[0].optimum;
         let budget = of_obj.iter().map(|r| r.budget).max().unwrap_or(0);
         let fixed = fixed_budgets(budget);
@@ -185,17 +186,16 @@ pub fn analyse(
                 continue;
             }
             runs.sort_by_key(|r| r.trial);
-            let errors: Vec<f64> = runs.iter().map(|r| error_of(r.best, optimum)).collect();
+            let errors: Vec<f64> = runs.iter().map(|r| error_of(r.best, r.optimum)).collect();
             let mut rng = TrialSeed::derive(seed, &format!("report:{}", info.id), opt, 0).rng(0);
             let median_ci = bootstrap_median_ci(&errors, CI_LEVEL, RESAMPLES, &mut rng);
             let targets = info
                 .targets
                 .iter()
                 .map(|&t| {
-                    let threshold = optimum.unwrap_or(0.0) + t;
                     let rt: Vec<RunToTarget> = runs
                         .iter()
-                        .map(|r| RunToTarget::from_record(r, threshold))
+                        .map(|r| RunToTarget::from_record(r, r.optimum.unwrap_or(0.0) + t))
                         .collect();
                     ert(&rt)
                 })
@@ -207,7 +207,7 @@ pub fn analyse(
                     .map(|&b| {
                         let at: Vec<f64> = runs
                             .iter()
-                            .map(|r| error_of(best_at(&r.improvements, b), optimum))
+                            .map(|r| error_of(best_at(&r.improvements, b), r.optimum))
                             .collect();
                         describe(&at).median
                     })
@@ -350,5 +350,40 @@ mod tests {
         assert_eq!(error_of(2.5, None), 2.5);
         assert_eq!(fixed_budgets(40_000), vec![400, 4000, 40_000]);
         assert_eq!(fixed_budgets(50), vec![1, 5, 50]);
+    }
+
+    /// Trials of one objective that ran different instances (COCO's `instances`) are
+    /// measured against their own optimum: errors, targets and fixed budgets alike.
+    #[test]
+    fn each_trial_is_measured_against_its_own_optimum() {
+        let rec = |trial: usize, optimum: f64, best: f64| TrialRecord {
+            objective: "o".into(),
+            optimizer: "p".into(),
+            trial,
+            seed: String::new(),
+            budget: 10,
+            evaluations: 10,
+            best,
+            best_x: vec![],
+            optimum: Some(optimum),
+            stopped_at_target: false,
+            nonfinite: 0,
+            penalised: 0,
+            wall_s: 0.0,
+            improvements: vec![(1, best + 5.0), (4, best)],
+            checkpoints: vec![],
+        };
+        let info = ObjectiveInfo {
+            id: SafeName::new("o").unwrap(),
+            dim: 2,
+            targets: vec![1.0],
+            label: None,
+        };
+        let records = [rec(0, 10.0, 10.5), rec(1, -300.0, -299.0)];
+        let a = analyse("s", 1, &[info], &records, &TrialMetrics::new());
+        let cell = &a.objectives[0].cells[0];
+        assert_eq!(cell.errors, [0.5, 1.0]);
+        assert_eq!(cell.targets[0].successes, 2, "{:?}", cell.targets[0]);
+        assert_eq!(a.objectives[0].fixed_budget_medians[0], [5.75, 0.75]);
     }
 }

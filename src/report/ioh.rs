@@ -9,11 +9,7 @@
 //!
 //! - **Function id** `fid`: fixed per objective kind ([`FUNCTION_IDS`]), the same in every
 //!   suite, so 2-D and 30-D Griewank are one function in two dimensions (`DIM`). The meta
-//!   file's `suite` is `optbench`, the name of this numbering. A member of COCO's `bbob`
-//!   suite (`Objective::suite_id`) keeps BBOB's numbers instead, as IOH numbers them:
-//!   function 1-24 and COCO's instance, in meta files of suite `BBOB`, one per function
-//!   (`IOHprofiler_f<fid>_bbob.json`). Two objectives of the same BBOB problem share their
-//!   instance: they are runs on one problem.
+//!   file's `suite` is `optbench`, the name of this numbering.
 //! - **Instance**: a test function is the untransformed function on a box; instance 1 is
 //!   its customary domain, any other box a number derived from the box. A fitting objective
 //!   (`bouc-wen`, `rbf`) is a model fitted to recordings; its instance is derived from every
@@ -89,8 +85,29 @@ pub struct IohObjective<'a> {
     pub fid: u16,
     pub dim: usize,
     pub instance: u16,
-    /// Subtracted from every value where known.
+    /// Subtracted from every value where known (each run's own: see [`Self::instances`]).
     pub optimum: Option<f64>,
+    /// A published suite's objective (COCO's BBOB) over an `instances` list: the instance
+    /// trial t ran is `instances[t mod n]`; empty: every trial ran `instance`.
+    pub instances: Vec<u16>,
+    /// The meta file's `suite`: `optbench`, or the published suite's name (`BBOB`).
+    pub suite: &'static str,
+}
+
+impl IohObjective<'_> {
+    /// The optimum subtracted from `r`'s values: its own where the objective's is known
+    /// (each instance has its own f_opt).
+    pub fn optimum_of(&self, r: &TrialRecord) -> Option<f64> {
+        self.optimum.map(|f| r.optimum.unwrap_or(f))
+    }
+
+    /// The instance trial `trial` ran.
+    pub fn instance_of(&self, trial: usize) -> u16 {
+        match self.instances.len() {
+            0 => self.instance,
+            n => self.instances[trial % n],
+        }
+    }
 }
 
 /// What identifies an objective's instance: None for a test function as its formula
@@ -140,20 +157,23 @@ pub fn objectives(suite: &Suite) -> Result<Vec<IohObjective<'_>>> {
     // Every objective gets an instance of its own, so `instances.csv` maps one to one.
     let mut taken: BTreeSet<(u16, usize, u16)> = BTreeSet::new();
     for o in &suite.objectives {
-        let dim = o.objective.dim();
-        if let Some(s) = o.objective.suite_id().filter(|s| s.suite == "bbob") {
-            // BBOB's own numbers (the kind refuses instances beyond 16 bits).
+        // COCO's functions keep COCO's numbers and instances (IOH numbers BBOB so).
+        if let Some(id) = o.objective.suite_id().filter(|id| id.suite == "bbob") {
+            let number = |i: usize| u16::try_from(i).unwrap_or(u16::MAX);
             out.push(IohObjective {
                 id: &o.id,
                 kind: o.kind,
-                fid: s.function as u16,
-                dim,
-                instance: u16::try_from(s.instance).unwrap_or(u16::MAX),
+                fid: number(id.function),
+                dim: o.objective.dim(),
+                instance: number(id.instance),
                 optimum: o.objective.optimum(),
+                instances: o.instances.iter().map(|(i, _)| number(*i)).collect(),
+                suite: "BBOB",
             });
             continue;
         }
         let fid = function_id(o.kind)?;
+        let dim = o.objective.dim();
         let b = o.objective.bounds();
         let params: Vec<(String, String)> = o
             .params
@@ -178,6 +198,8 @@ pub fn objectives(suite: &Suite) -> Result<Vec<IohObjective<'_>>> {
             dim,
             instance,
             optimum: o.objective.optimum(),
+            instances: Vec::new(),
+            suite: "optbench",
         });
     }
     Ok(out)
@@ -212,11 +234,11 @@ fn dat_block(out: &mut String, r: &TrialRecord, optimum: Option<f64>) {
 /// One run's entry in the meta file.
 fn run_json(r: &TrialRecord, o: &IohObjective<'_>) -> serde_json::Value {
     json!({
-        "instance": o.instance,
+        "instance": o.instance_of(r.trial),
         "evals": r.evaluations,
         "best": {
             "evals": r.improvements.last().map(|l| l.0).unwrap_or(0),
-            "y": finite(exported(r.best, o.optimum)),
+            "y": finite(exported(r.best, o.optimum_of(r))),
             "x": r.best_x,
         },
         "trial": r.trial,
@@ -253,16 +275,15 @@ pub fn export(
     create_dir_within(dir, dir)?;
     atomic_write(&dir.join("instances.csv"), csv.as_bytes())?;
 
-    // (Kind, function id) in order of first appearance (one id per kind except BBOB's),
-    // dimensions in order of first appearance.
-    let mut kinds: Vec<(&str, u16)> = Vec::new();
+    // Kinds in order of first appearance, dimensions in order of first appearance.
+    let mut kinds: Vec<(&str, u16, &str)> = Vec::new();
     for o in objectives {
-        if !kinds.contains(&(o.kind, o.fid)) {
-            kinds.push((o.kind, o.fid));
+        if !kinds.iter().any(|k| k.0 == o.kind && k.1 == o.fid) {
+            kinds.push((o.kind, o.fid, o.suite));
         }
     }
     for &(opt, opt_kind) in optimizers {
-        for &(kind, fid) in &kinds {
+        for &(kind, fid, fsuite) in &kinds {
             let base = dir.join(opt);
             let data_dir = format!("data_f{fid}_{kind}");
             let mut scenarios = Vec::new();
@@ -285,7 +306,7 @@ pub fn export(
                         .collect();
                     of_obj.sort_by_key(|r| r.trial);
                     for r in of_obj {
-                        dat_block(&mut dat, r, o.optimum);
+                        dat_block(&mut dat, r, o.optimum_of(r));
                         runs.push(run_json(r, o));
                     }
                 }
@@ -306,7 +327,7 @@ pub fn export(
             }
             let meta = json!({
                 "version": IOH_FORMAT,
-                "suite": if kind == "bbob" { "BBOB" } else { "optbench" },
+                "suite": fsuite,
                 "function_id": fid,
                 "function_name": kind,
                 "maximization": false,
@@ -374,6 +395,8 @@ mod tests {
                 dim,
                 instance,
                 optimum,
+                instances: Vec::new(),
+                suite: "optbench",
             }
         }
         let opt = Some(-837.9657745448674);
@@ -453,11 +476,8 @@ mod tests {
 
     #[test]
     fn every_objective_kind_has_one_fixed_function_id() {
-        // `bbob` objectives take BBOB's numbers 1-24 from their suite identity.
         for k in crate::registry::objective_kinds() {
-            if k.name != "bbob" {
-                function_id(k.name).unwrap();
-            }
+            function_id(k.name).unwrap();
         }
         let mut ids: Vec<u16> = FUNCTION_IDS.iter().map(|k| k.1).collect();
         ids.sort();

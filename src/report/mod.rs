@@ -3,6 +3,7 @@
 //! IOHprofiler export) and `analysis.json`. The same folder always gives the same bytes.
 
 pub mod analysis;
+pub mod coco;
 pub mod html;
 pub mod ioh;
 pub mod paper;
@@ -170,6 +171,8 @@ pub fn generate(dir: &Path) -> Result<String> {
         }
     }
     md += &penalised_markdown(&run.records);
+    let bbob = bbob_ecdfs(&run);
+    md += &bbob_markdown(&bbob);
     let report = paper::report_markdown(&a);
     let report = match report.split_once("\n## ") {
         // The paper tables go after the main table, before the details.
@@ -194,6 +197,7 @@ pub fn generate(dir: &Path) -> Result<String> {
 
     let fresh_plots = FreshFolder::begin(dir, "plots")?;
     write_plots(fresh_plots.path(), &run, &a)?;
+    write_bbob_ecdfs(fresh_plots.path(), &bbob)?;
 
     let fresh_ioh = FreshFolder::begin(dir, "ioh")?;
     let optimizers: Vec<(&SafeName, &str)> = run
@@ -209,11 +213,20 @@ pub fn generate(dir: &Path) -> Result<String> {
         &optimizers,
         &run.records,
     )?;
-    for f in [fresh_tables, fresh_plots, fresh_ioh] {
+    let mut fresh = vec![fresh_tables, fresh_plots, fresh_ioh];
+    if !bbob.is_empty() {
+        let fresh_coco = FreshFolder::begin(dir, "coco")?;
+        coco::export(fresh_coco.path(), &run.suite, &run.records)?;
+        fresh.push(fresh_coco);
+    }
+    for f in fresh {
         f.commit()?;
     }
     // Last, once the fresh folders are in place: the page embeds the figures just drawn.
-    let groups: Vec<String> = a.objectives.iter().map(|o| o.id.to_string()).collect();
+    let mut groups: Vec<String> = a.objectives.iter().map(|o| o.id.to_string()).collect();
+    if !bbob.is_empty() {
+        groups.insert(0, BBOB_GROUP.into());
+    }
     html::write(
         dir,
         &html::Page {
@@ -303,7 +316,7 @@ pub fn plot_data(run: &StoredRun, a: &Analysis) -> Vec<ObjectivePlots> {
                 .map(|r| {
                     error_of(
                         r.improvements.first().map(|i| i.1).unwrap_or(f64::INFINITY),
-                        o.optimum,
+                        r.optimum,
                     )
                 })
                 .collect();
@@ -324,7 +337,7 @@ pub fn plot_data(run: &StoredRun, a: &Analysis) -> Vec<ObjectivePlots> {
                 let mut v = Vec::new();
                 for r in by_opt(&c.optimizer) {
                     for &t in &targets {
-                        let threshold = o.optimum.unwrap_or(0.0) + t;
+                        let threshold = r.optimum.unwrap_or(0.0) + t;
                         v.push(
                             crate::stats::first_hit(&r.improvements, threshold)
                                 .map(|e| e as f64)
@@ -390,6 +403,131 @@ fn write_plots(dir: &Path, run: &StoredRun, a: &Analysis) -> Result<()> {
             &p.runtimes,
             "function evaluations",
             (1.0, p.budget as f64),
+        )?;
+    }
+    Ok(())
+}
+
+/// The figure group (and stem suffix) of the BBOB aggregates, shown first.
+const BBOB_GROUP: &str = "bbob";
+
+/// COCO's runtime ECDF of one dimension, aggregated over its BBOB functions.
+pub struct BbobEcdf {
+    pub dim: usize,
+    pub functions: usize,
+    /// Runs of the first optimizer (the figure's title).
+    pub runs: usize,
+    /// Largest budget / dim of the runs.
+    pub budget_per_dim: f64,
+    /// Per optimizer (suite order), for every (run, target): evaluations / dim to reach
+    /// f − f_opt <= target (+inf: never).
+    pub series: Vec<(String, Vec<f64>)>,
+}
+
+impl BbobEcdf {
+    /// Fraction of the (function, instance, target) triples an optimizer reached.
+    pub fn reached(&self, values: &[f64]) -> f64 {
+        values.iter().filter(|v| v.is_finite()).count() as f64 / values.len().max(1) as f64
+    }
+}
+
+/// The runtime ECDFs cocopp draws per dimension: every run of every BBOB function against
+/// COCO's 51 targets 10^2..10^-8 of f − f_opt (its instance's), x = evaluations / dim.
+/// Empty when the suite has no BBOB objective.
+pub fn bbob_ecdfs(run: &StoredRun) -> Vec<BbobEcdf> {
+    let runs = coco::bbob_runs(&run.suite, &run.records);
+    let targets = coco::targets();
+    let mut dims: Vec<usize> = runs.iter().map(|r| r.dim).collect();
+    dims.sort_unstable();
+    dims.dedup();
+    dims.into_iter()
+        .map(|dim| {
+            let of_dim: Vec<&coco::BbobRun<'_>> = runs.iter().filter(|r| r.dim == dim).collect();
+            let mut functions: Vec<usize> = of_dim.iter().map(|r| r.function).collect();
+            functions.sort_unstable();
+            functions.dedup();
+            let series: Vec<(String, Vec<f64>)> = run
+                .suite
+                .optimizers
+                .iter()
+                .map(|opt| {
+                    let mut v = Vec::new();
+                    for r in of_dim.iter().filter(|r| r.record.optimizer == *opt.id) {
+                        for &t in &targets {
+                            // As cocopp compares: the error f − f_opt against the target.
+                            let hit = r.record.improvements.iter().find(|i| i.1 - r.fopt <= t);
+                            v.push(hit.map_or(f64::INFINITY, |i| i.0 as f64 / dim as f64));
+                        }
+                    }
+                    (opt.id.to_string(), v)
+                })
+                .filter(|(_, v)| !v.is_empty())
+                .collect();
+            BbobEcdf {
+                dim,
+                functions: functions.len(),
+                runs: series.first().map_or(0, |s| s.1.len() / targets.len()),
+                budget_per_dim: of_dim
+                    .iter()
+                    .map(|r| r.record.budget as f64 / dim as f64)
+                    .fold(1.0, f64::max),
+                series,
+            }
+        })
+        .collect()
+}
+
+/// The report's section on the BBOB aggregates: what was reached, per dimension.
+fn bbob_markdown(ecdfs: &[BbobEcdf]) -> String {
+    if ecdfs.is_empty() {
+        return String::new();
+    }
+    let mut s = String::from(
+        "## BBOB: runtime ECDFs over functions\n\nAs cocopp aggregates them: per dimension, every run of every BBOB function against COCO's 51 targets 10^2..10^-8 of f − f_opt (each run's own instance); the share of (function, instance, target) triples reached within the budget (figures `ecdf-dDD_bbob`, x = evaluations / dimension). The runs are in COCO's format under `coco/`, for `cocopp`.\n\n",
+    );
+    let mut rows = Vec::new();
+    for e in ecdfs {
+        for (opt, v) in &e.series {
+            rows.push(vec![
+                e.dim.to_string(),
+                opt.clone(),
+                e.functions.to_string(),
+                (v.len() / coco::targets().len()).to_string(),
+                format!("{:.0}", e.budget_per_dim),
+                format!("{:.3}", e.reached(v)),
+            ]);
+        }
+    }
+    s += &markdown(
+        &[
+            "dim",
+            "optimizer",
+            "functions",
+            "runs",
+            "budget / dim",
+            "triples reached",
+        ],
+        &rows,
+        &[true, false, true, true, true, true],
+    );
+    s.push('\n');
+    s
+}
+
+fn write_bbob_ecdfs(dir: &Path, ecdfs: &[BbobEcdf]) -> Result<()> {
+    for e in ecdfs {
+        render::ecdf_of(
+            &dir.join(format!("ecdf-d{:02}_{BBOB_GROUP}", e.dim)),
+            &format!(
+                "bbob {}-D: {} functions, {} runs, 51 targets 1e2..1e-8",
+                e.dim, e.functions, e.runs
+            ),
+            &e.series,
+            (
+                "function evaluations / dimension",
+                "fraction of (function, instance, target) triples",
+            ),
+            (1.0 / e.dim as f64, e.budget_per_dim),
         )?;
     }
     Ok(())

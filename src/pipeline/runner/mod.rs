@@ -105,10 +105,10 @@ pub fn trial_spec<'a>(suite: &'a Suite, t: &PlannedTrial) -> TrialSpec<'a> {
         objective_id: &obj.id,
         optimizer_id: &opt.id,
         trial: t.trial,
-        objective: Arc::clone(&obj.objective),
+        objective: Arc::clone(obj.objective_of(t.trial)),
         optimizer: opt.config.as_ref(),
         budget: obj.budget,
-        stop_value: obj.stop_value(),
+        stop_value: obj.stop_value(t.trial),
         stall: None,
         seed: suite.seed_of(t),
     }

@@ -6,7 +6,7 @@
 //! name = "functions"      # results go to results/<name>/
 //! seed = 2013             # every random stream derives from it
 //! trials = 30             # seeded repeats of every objective x optimizer
-//! budget = 40000          # function evaluations per trial
+//! budget = 40000          # function evaluations per trial (or budget_per_dim = k: k x dim)
 //! targets = [1e-2, 1e-4]  # optional: error-to-optimum levels for fixed-target views
 //! stop_at = 1e-8          # optional: end a trial once its error reaches this
 //!
@@ -16,6 +16,10 @@
 //! dim = 2
 //! budget = 40000          # optional per-objective override (also targets, stop_at)
 //! optimizers = ["MSGA"]   # optional: only these optimizer ids run on this objective
+//! # instances = "1-15"    # kinds with an `instance` key: trial t runs instances[t mod n]
+//!
+//! [bbob]                  # optional: COCO's BBOB functions x dimensions (see [`bbob`])
+//! dimensions = [2, 5]
 //!
 //! [[optimizer]]
 //! kind = "msga"
@@ -44,6 +48,8 @@ use std::sync::Arc;
 use text::{Fields as RawEntry, Header, SuiteText};
 use toml::Spanned;
 
+pub mod bbob;
+pub mod instances;
 pub mod paper;
 pub mod text;
 
@@ -57,7 +63,10 @@ struct RawSuite {
     description: Option<String>,
     seed: Spanned<i64>,
     trials: Spanned<i64>,
-    budget: Spanned<i64>,
+    #[serde(default)]
+    budget: Option<Spanned<i64>>,
+    #[serde(default)]
+    budget_per_dim: Option<Spanned<i64>>,
     #[serde(default)]
     targets: Option<Spanned<Vec<f64>>>,
     #[serde(default)]
@@ -68,6 +77,8 @@ struct RawSuite {
     optimizers: Vec<Spanned<RawEntry>>,
     #[serde(rename = "table", default)]
     tables: Vec<Spanned<PaperTable>>,
+    #[serde(default)]
+    bbob: Option<Spanned<RawEntry>>,
 }
 
 /// One objective of a suite, built and validated.
@@ -84,17 +95,37 @@ pub struct ObjectiveEntry {
     pub stop_at: Option<f64>,
     /// Indices of the optimizers that run on this objective (default: all).
     pub optimizers: Vec<usize>,
+    /// The parameters as given (with an `instances` list: those of its first instance).
     pub params: Params,
+    /// With an `instances` list: each instance's number and objective, in list order
+    /// (`objective` is the first's); empty otherwise.
+    pub instances: Vec<(usize, Arc<dyn Objective>)>,
 }
 
 impl ObjectiveEntry {
-    /// The value at which a trial stops, from `stop_at` (in presented units where the
-    /// objective has a presentation, else as an error to the known optimum).
-    pub fn stop_value(&self) -> Option<f64> {
+    /// The objective trial `trial` runs: instance `instances[trial mod n]` where the entry
+    /// has a list (COCO's one run per instance), else the one objective. Its dimension,
+    /// bounds and kind are those of every other instance; its optimum is its own.
+    pub fn objective_of(&self, trial: usize) -> &Arc<dyn Objective> {
+        match self.instances.len() {
+            0 => &self.objective,
+            n => &self.instances[trial % n].1,
+        }
+    }
+
+    /// The instance number trial `trial` runs, where the entry has an `instances` list.
+    pub fn instance_of(&self, trial: usize) -> Option<usize> {
+        (!self.instances.is_empty()).then(|| self.instances[trial % self.instances.len()].0)
+    }
+
+    /// The value at which trial `trial` stops, from `stop_at` (in presented units where the
+    /// objective has a presentation, else as an error to its instance's known optimum).
+    pub fn stop_value(&self, trial: usize) -> Option<f64> {
         let s = self.stop_at?;
-        Some(match self.objective.presentation() {
+        let o = self.objective_of(trial);
+        Some(match o.presentation() {
             Some(p) => p.invert(s),
-            None => self.objective.optimum().unwrap_or(0.0) + s,
+            None => o.optimum().unwrap_or(0.0) + s,
         })
     }
 }
@@ -145,8 +176,12 @@ impl Suite {
         let st = SuiteText::new(path, text);
         let raw: RawSuite = st.parse()?;
         let Header { name, seed, trials } = st.header(&raw.name, &raw.seed, &raw.trials)?;
-        let budget = positive_budget(*raw.budget.get_ref())
-            .map_err(|m| st.at(raw.budget.span().start, m))?;
+        let spanned_int =
+            |v: &Option<Spanned<i64>>| v.as_ref().map(|v| (*v.get_ref(), st.line(v.span().start)));
+        let suite_budget = (spanned_int(&raw.budget), spanned_int(&raw.budget_per_dim));
+        if suite_budget.0.is_some() || suite_budget.1.is_some() {
+            instances::budget((None, None), suite_budget, 1).map_err(|(l, m)| st.on(l, m))?;
+        }
         let targets = match &raw.targets {
             Some(t) => check_targets(t.get_ref()).map_err(|m| st.at(t.span().start, m))?,
             None => Vec::new(),
@@ -157,8 +192,13 @@ impl Suite {
             }
             None => None,
         };
-        if raw.objectives.is_empty() {
-            return Err(st.on(1, "the suite has no [[objective]]"));
+        let mut entries = match &raw.bbob {
+            Some(section) => bbob::expand(&st, section)?,
+            None => Vec::new(),
+        };
+        entries.extend(raw.objectives.iter().cloned());
+        if entries.is_empty() {
+            return Err(st.on(1, "the suite has no [[objective]] (nor a [bbob] section)"));
         }
         if raw.optimizers.is_empty() {
             return Err(st.on(1, "the suite has no [[optimizer]]"));
@@ -170,7 +210,7 @@ impl Suite {
         let mut ids = BTreeSet::new();
         let base = path.parent().unwrap_or(Path::new(""));
         let mut anchored = Vec::new();
-        for entry in &raw.objectives {
+        for entry in &entries {
             let (line, mut fields) = (st.line(entry.span().start), entry.get_ref().clone());
             let kind = st.take_kind(&kinds, |k| k.name, &mut fields, line, "objective")?;
             for key in RECORDING_KEYS {
@@ -184,26 +224,55 @@ impl Suite {
                 }
             }
             let id = st.take_str(&mut fields, "id")?;
-            let own_budget = st.take_int(&mut fields, "budget")?;
+            let own_budget = (
+                st.take_int(&mut fields, "budget")?,
+                st.take_int(&mut fields, "budget_per_dim")?,
+            );
+            let numbers = instance_list(&st, &mut fields, kind, line)?;
             let own_targets = st.take_floats(&mut fields, "targets")?;
             let own_stop = st.take_float(&mut fields, "stop_at")?;
             let only = st.take_array(&mut fields, "optimizers", "strings", |x| {
                 x.as_str().map(String::from)
             })?;
             let what = format!("objective `{}`", id.as_deref().unwrap_or(kind.name));
-            let params = Params::validate(kind.params, &st.given(fields), st.origin(line, what))?;
-            let objective = (kind.build)(&params)?;
-            // A benchmark-suite member is named by its problem (`bbob-f03-i02-d05`), so
-            // several of one kind and dimension need no ids of their own.
+            let given = st.given(fields);
+            let mut instances = Vec::new();
+            let mut first = None;
+            for &n in numbers.iter().flatten() {
+                let mut given = given.clone();
+                given.insert("instance".into(), (toml::Value::Integer(n as i64), line));
+                let what = format!("{what}, instance {n}");
+                let params = Params::validate(kind.params, &given, st.origin(line, what))?;
+                instances.push((n, (kind.build)(&params)?));
+                first.get_or_insert(params);
+            }
+            let params = match first {
+                Some(p) => p,
+                None => Params::validate(kind.params, &given, st.origin(line, what))?,
+            };
+            let objective = match instances.first() {
+                Some((_, o)) => Arc::clone(o),
+                None => (kind.build)(&params)?,
+            };
+            // A benchmark-suite member is named by its problem (`bbob-f03-i02-d05`; over an
+            // `instances` list `bbob-f03-d05`), so several of one kind and dimension need no
+            // ids of their own.
             let id = id.unwrap_or_else(|| match objective.suite_id() {
+                Some(s) if !instances.is_empty() => {
+                    format!("{}-f{:02}-d{:02}", s.suite, s.function, objective.dim())
+                }
                 Some(_) => objective.name().to_string(),
                 None => format!("{}-{}d", kind.name, objective.dim()),
             });
             let id = st.check_id(&id, &mut ids, line, "objective", &[])?;
-            let budget = match own_budget {
-                Some((b, l)) => positive_budget(b).map_err(|m| st.on(l, m))?,
-                None => budget,
-            };
+            let budget = instances::budget(own_budget, suite_budget, objective.dim()).map_err(
+                |(l, m)| {
+                    st.on(
+                        if l == 0 { line } else { l },
+                        format!("objective `{id}`: {m}"),
+                    )
+                },
+            )?;
             let targets = match own_targets {
                 Some((t, l)) => check_targets(&t).map_err(|m| st.on(l, m))?,
                 None => targets.clone(),
@@ -221,6 +290,7 @@ impl Suite {
                 stop_at,
                 optimizers: Vec::new(),
                 params,
+                instances,
             });
             selections.push(only);
         }
@@ -352,6 +422,17 @@ impl Suite {
             objectives,
             optimizers,
         };
+        if let Some(o) = suite.objectives.iter().find(|o| o.instances.len() > trials) {
+            return Err(st.at(
+                raw.trials.span().start,
+                format!(
+                    "`trials` = {trials}, but objective `{}` lists {} instances, so some would never run (trial t runs instance t mod n); set `trials` to at least {} (a multiple runs each equally often)",
+                    o.id,
+                    o.instances.len(),
+                    o.instances.len()
+                ),
+            ));
+        }
         if let Some(m) = suite.plan_too_large() {
             return Err(st.at(raw.trials.span().start, format!("`trials` = {trials}: {m}")));
         }
@@ -492,14 +573,36 @@ fn check_table(
     Ok(())
 }
 
-fn positive_budget(b: i64) -> std::result::Result<u64, String> {
-    if b < 1 {
-        Err(format!(
-            "`budget` = {b}: expected a number of evaluations >= 1"
-        ))
-    } else {
-        Ok(b as u64)
+/// The entry's `instances` list, refused where its kind takes no `instance` or the entry
+/// also sets one.
+fn instance_list(
+    st: &SuiteText<'_>,
+    fields: &mut RawEntry,
+    kind: &crate::registry::ObjectiveKind,
+    line: usize,
+) -> Result<Option<Vec<usize>>> {
+    let Some(v) = fields.remove("instances") else {
+        return Ok(None);
+    };
+    let at = st.line(v.span().start);
+    if !kind.params.iter().any(|s| s.name == "instance") {
+        return Err(st.on(
+            at,
+            format!(
+                "objective kind `{}` takes no `instance`, so no `instances` list; kinds with instances take an `instance` key (see `optbench list`)",
+                kind.name
+            ),
+        ));
     }
+    if let Some(i) = fields.get("instance") {
+        return Err(st.on(
+            st.line(i.span().start).max(line),
+            "both `instance` and `instances` are set; give one of them",
+        ));
+    }
+    instances::parse_list(v.get_ref(), "instances")
+        .map(Some)
+        .map_err(|m| st.on(at, m))
 }
 
 fn check_level(x: f64, key: &str) -> std::result::Result<f64, String> {
