@@ -437,7 +437,7 @@ fn bad_calls_suites_and_merges_are_refused() {
             "e.toml",
             "`mine`",
             "kind `external`",
-            "optbench.ExternalRun",
+            "optbench.Experiment",
         ],
     );
     assert!(!d.join("e").exists());
