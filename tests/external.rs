@@ -433,12 +433,7 @@ fn bad_calls_suites_and_merges_are_refused() {
     std::fs::write(d.join("e.toml"), &with_external).unwrap();
     refused(
         &optbench(&["run", "e.toml", "--out", "e"], d),
-        &[
-            "e.toml",
-            "`mine`",
-            "kind `external`",
-            "optbench.ExternalRun",
-        ],
+        &["e.toml", "`mine`", "kind `external`", "optbench.Experiment"],
     );
     assert!(!d.join("e").exists());
     // ... while an external run of it takes the entry's description.

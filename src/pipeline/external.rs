@@ -86,7 +86,7 @@ pub fn refuse_external(suite: &Suite) -> Result<()> {
         None => Ok(()),
         Some(o) => Err(o.params.entry_error(format!(
             "is of kind `external`: it runs outside optbench, which cannot drive it. Run it \
-             from Python (package `optbench`: `optbench.ExternalRun(SUITE, \"{}\")`) or the \
+             from Python (package `optbench`: `optbench.Experiment(SUITE, \"{}\")`) or the \
              Rust API `optbench::pipeline::external::ExternalRun` into a folder of its own, \
              run the built-in optimizers from a suite without it, and combine the two \
              folders with `optbench merge DIR DIR --out DIR` (docs/03-suites-and-results.md)",
