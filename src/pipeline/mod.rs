@@ -5,6 +5,7 @@
 //! the one-trial jobs of `optbench fit` ([`single_fit`]) and `optbench simulate`
 //! ([`simulate`]).
 
+pub mod external;
 pub mod run;
 pub mod runner;
 pub mod scale;

@@ -179,6 +179,7 @@ pub struct Prepared {
 /// Loads and validates the suite, applies overrides and the shard; writes nothing.
 pub fn prepare(req: &RunRequest) -> Result<Prepared> {
     let mut suite = Suite::load(&req.suite)?;
+    crate::pipeline::external::refuse_external(&suite)?;
     req.overrides.apply(&mut suite)?;
     let out = req.out.clone().unwrap_or_else(|| {
         let name = match req.shard {
@@ -187,42 +188,64 @@ pub fn prepare(req: &RunRequest) -> Result<Prepared> {
         };
         PathBuf::from("results").join(name)
     });
-    if out.is_file() {
-        return Err(Error::Input(format!(
-            "--out {}: is a file, expected a folder",
-            out.display()
-        )));
-    }
-    let all = suite.plan();
-    let plan: Vec<PlannedTrial> = match req.shard {
-        Some(s) => s.positions(all.len()).into_iter().map(|i| all[i]).collect(),
-        None => all,
-    };
-    let keys: Vec<String> = plan.iter().map(|t| trial_key(&suite, t)).collect();
-    let header = ProgressHeader {
-        format: FORMAT.into(),
-        suite: suite.name.to_string(),
-        suite_file: std::path::absolute(&req.suite)
-            .unwrap_or_else(|_| req.suite.clone())
-            .display()
-            .to_string(),
-        fingerprint: fingerprint(&suite, req.overrides.budget),
-        build: build_id(),
-        seed: suite.seed,
-        trials: suite.trials,
-        budget: req.overrides.budget,
-        shard: req.shard.map(|s| (s.k, s.n)),
-        planned: plan.len(),
-        started: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
-    };
-    Ok(Prepared {
+    Prepared::new(
         suite,
+        &req.suite,
         out,
-        plan,
-        keys,
-        header,
-        overwrite: req.overwrite,
-    })
+        req.overrides.budget,
+        req.shard,
+        req.overwrite,
+    )
+}
+
+impl Prepared {
+    /// The plan of `suite` (overrides applied; `budget` is the `--budget` override) for
+    /// results in `out`, read from `suite_file`; writes nothing.
+    pub fn new(
+        suite: Suite,
+        suite_file: &Path,
+        out: PathBuf,
+        budget: Option<u64>,
+        shard: Option<Shard>,
+        overwrite: bool,
+    ) -> Result<Prepared> {
+        if out.is_file() {
+            return Err(Error::Input(format!(
+                "--out {}: is a file, expected a folder",
+                out.display()
+            )));
+        }
+        let all = suite.plan();
+        let plan: Vec<PlannedTrial> = match shard {
+            Some(s) => s.positions(all.len()).into_iter().map(|i| all[i]).collect(),
+            None => all,
+        };
+        let keys: Vec<String> = plan.iter().map(|t| trial_key(&suite, t)).collect();
+        let header = ProgressHeader {
+            format: FORMAT.into(),
+            suite: suite.name.to_string(),
+            suite_file: std::path::absolute(suite_file)
+                .unwrap_or_else(|_| suite_file.to_path_buf())
+                .display()
+                .to_string(),
+            fingerprint: fingerprint(&suite, budget),
+            build: build_id(),
+            seed: suite.seed,
+            trials: suite.trials,
+            budget,
+            shard: shard.map(|s| (s.k, s.n)),
+            planned: plan.len(),
+            started: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
+        };
+        Ok(Prepared {
+            suite,
+            out,
+            plan,
+            keys,
+            header,
+            overwrite,
+        })
+    }
 }
 
 /// How a stored log differs from the run asked for (empty: it is the same run).
@@ -366,22 +389,21 @@ pub fn run(req: &RunRequest) -> Result<String> {
                 .unwrap_or_else(|| fresh.next().expect("one fresh record per trial run"))
         })
         .collect();
-    finish(
-        &p, &records, threads, started, reused, req.quiet, req.report,
-    )
+    let provenance = Provenance::new(&p.suite, threads, started);
+    finish(&p, &records, provenance, reused, req.quiet, req.report)
 }
 
-/// Writes the results of a finished run (or shard) and returns the text to print.
+/// Writes the results of a finished run (or shard) with its `provenance` and returns the
+/// text to print.
 pub fn finish(
     p: &Prepared,
     records: &[TrialRecord],
-    threads: usize,
-    started: std::time::SystemTime,
+    provenance: Provenance,
     reused: usize,
     quiet: bool,
     report: Option<Report>,
 ) -> Result<String> {
-    let provenance = Provenance::new(&p.suite, threads, started);
+    let threads = provenance.threads;
     let resumed = if reused > 0 {
         format!(", {reused} trials resumed from {}", p.out.display())
     } else {

@@ -3,7 +3,7 @@
 
 pub mod trial;
 
-pub use trial::{TrialSpec, run_trial, run_trial_observed};
+pub use trial::{TrialIdentity, TrialSpec, run_trial, run_trial_observed};
 
 use crate::base::error::{Error, Result};
 use crate::harness::TrialRecord;
@@ -93,9 +93,15 @@ pub fn spinner(show: bool) -> ProgressBar {
 
 /// Runs one planned trial of `suite` (on the calling thread).
 pub fn run_planned(suite: &Suite, t: &PlannedTrial) -> TrialRecord {
+    run_trial(trial_spec(suite, t))
+}
+
+/// What a planned trial of `suite` runs: its objective, optimizer, budget, stop value and
+/// seed (also what an external optimizer's trial is given, [`crate::pipeline::external`]).
+pub fn trial_spec<'a>(suite: &'a Suite, t: &PlannedTrial) -> TrialSpec<'a> {
     let obj = &suite.objectives[t.objective];
     let opt = &suite.optimizers[t.optimizer];
-    run_trial(TrialSpec {
+    TrialSpec {
         objective_id: &obj.id,
         optimizer_id: &opt.id,
         trial: t.trial,
@@ -105,5 +111,5 @@ pub fn run_planned(suite: &Suite, t: &PlannedTrial) -> TrialRecord {
         stop_value: obj.stop_value(),
         stall: None,
         seed: suite.seed_of(t),
-    })
+    }
 }

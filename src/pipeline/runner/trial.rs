@@ -2,7 +2,7 @@
 //! the optimizers and the harness contract they implement.
 
 use crate::base::TrialSeed;
-use crate::harness::{Evaluator, OptimizerConfig, Stall, TrialRecord};
+use crate::harness::{Evaluator, OptimizerConfig, Stall, Trace, TrialRecord};
 use crate::objective::Objective;
 use std::sync::Arc;
 use std::time::Instant;
@@ -48,22 +48,54 @@ pub fn run_trial_observed(spec: TrialSpec<'_>, step: &dyn Fn(u64)) -> TrialRecor
     }
     drop(optimizer);
     let trace = ev.finish();
-    TrialRecord {
-        objective: spec.objective_id.to_string(),
-        optimizer: spec.optimizer_id.to_string(),
-        trial: spec.trial,
-        seed: spec.seed.hex(),
-        budget: spec.budget,
-        evaluations: trace.evaluations,
-        best: trace.best,
-        best_x: trace.best_x,
-        optimum: spec.objective.optimum(),
-        stopped_at_target: trace.stopped_at_target,
-        nonfinite: trace.nonfinite,
-        penalised: trace.penalised,
-        wall_s: start.elapsed().as_secs_f64(),
-        improvements: trace.improvements,
-        checkpoints: trace.checkpoints,
+    TrialIdentity::of(&spec).record(trace, start.elapsed().as_secs_f64())
+}
+
+/// What a trial record says about the trial besides its trace: the same for a trial of
+/// the loop above and one an optimizer outside optbench drives
+/// ([`crate::pipeline::external`]), so both leave identical records.
+#[derive(Debug, Clone)]
+pub struct TrialIdentity {
+    pub objective_id: String,
+    pub optimizer_id: String,
+    pub trial: usize,
+    pub seed: TrialSeed,
+    pub budget: u64,
+    /// Known optimum of the objective.
+    pub optimum: Option<f64>,
+}
+
+impl TrialIdentity {
+    pub fn of(spec: &TrialSpec<'_>) -> Self {
+        TrialIdentity {
+            objective_id: spec.objective_id.to_string(),
+            optimizer_id: spec.optimizer_id.to_string(),
+            trial: spec.trial,
+            seed: spec.seed,
+            budget: spec.budget,
+            optimum: spec.objective.optimum(),
+        }
+    }
+
+    /// The stored record of this trial, from its evaluator's final trace.
+    pub fn record(self, trace: Trace, wall_s: f64) -> TrialRecord {
+        TrialRecord {
+            objective: self.objective_id,
+            optimizer: self.optimizer_id,
+            trial: self.trial,
+            seed: self.seed.hex(),
+            budget: self.budget,
+            evaluations: trace.evaluations,
+            best: trace.best,
+            best_x: trace.best_x,
+            optimum: self.optimum,
+            stopped_at_target: trace.stopped_at_target,
+            nonfinite: trace.nonfinite,
+            penalised: trace.penalised,
+            wall_s,
+            improvements: trace.improvements,
+            checkpoints: trace.checkpoints,
+        }
     }
 }
 

@@ -161,7 +161,8 @@ pub fn merge(dirs: &[PathBuf], out: &Path, quiet: bool, report: Option<Report>) 
         overwrite: false,
     };
     let started = earliest.unwrap_or_else(std::time::SystemTime::now);
-    let text = finish(&p, &records, threads, started, 0, quiet, report)?;
+    let provenance = Provenance::new(&p.suite, threads, started);
+    let text = finish(&p, &records, provenance, 0, quiet, report)?;
     Ok(if quiet {
         text
     } else {

@@ -187,13 +187,6 @@ fn coordinate(req: &RunRequest, world: &SimpleCommunicator) -> Result<String> {
                 .expect("every planned trial finished")
         })
         .collect();
-    finish(
-        &p,
-        &records,
-        size as usize,
-        started,
-        reused,
-        req.quiet,
-        req.report,
-    )
+    let provenance = crate::pipeline::store::Provenance::new(&p.suite, size as usize, started);
+    finish(&p, &records, provenance, reused, req.quiet, req.report)
 }

@@ -38,6 +38,14 @@ pub struct Provenance {
     pub command: Vec<String>,
     pub os: String,
     pub arch: String,
+    /// What the caller adds about a run optbench did not drive itself: an external
+    /// optimizer's language and package versions, a partial run ([`crate::pipeline::external`]).
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub extra: std::collections::BTreeMap<String, String>,
+    /// The provenance of each folder `optbench merge` combined from runs of different
+    /// optimizers (empty for a single run or a merge of shards).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub parts: Vec<Provenance>,
 }
 
 impl Provenance {
@@ -92,6 +100,8 @@ impl Provenance {
             command: std::env::args().collect(),
             os: std::env::consts::OS.into(),
             arch: std::env::consts::ARCH.into(),
+            extra: Default::default(),
+            parts: Vec::new(),
         }
     }
 }

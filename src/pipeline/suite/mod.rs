@@ -35,6 +35,7 @@ use crate::base::params::Params;
 use crate::base::{SafeName, TrialSeed};
 use crate::harness::OptimizerConfig;
 use crate::objective::Objective;
+use crate::pipeline::external::{EXTERNAL_KIND, EXTERNAL_PARAMS, ExternalConfig};
 use crate::registry::{RECORDING_KEYS, anchor_recordings, objective_kinds, optimizer_kinds};
 use serde::Deserialize;
 use std::collections::{BTreeMap, BTreeSet};
@@ -224,6 +225,10 @@ impl Suite {
         let mut ids = BTreeSet::new();
         for entry in &raw.optimizers {
             let (line, mut fields) = (st.line(entry.span().start), entry.get_ref().clone());
+            if fields.get("kind").and_then(|k| k.get_ref().as_str()) == Some(EXTERNAL_KIND) {
+                optimizers.push(external_entry(&st, fields, line, &mut ids)?);
+                continue;
+            }
             let kind = st.take_kind(&kinds, |k| k.name, &mut fields, line, "optimizer")?;
             let id = st
                 .take_str(&mut fields, "id")?
@@ -393,6 +398,38 @@ impl Suite {
             t.trial as u64,
         )
     }
+}
+
+/// An `[[optimizer]]` of kind `external`: one that runs outside optbench
+/// ([`crate::pipeline::external`]); `id` is required (it is the optimizer's only name), and
+/// `description` says what it is.
+fn external_entry(
+    st: &SuiteText<'_>,
+    mut fields: RawEntry,
+    line: usize,
+    ids: &mut BTreeSet<String>,
+) -> Result<OptimizerEntry> {
+    fields.remove("kind");
+    let id = st.take_str(&mut fields, "id")?.ok_or_else(|| {
+        st.on(
+            line,
+            "optimizer of kind `external` without `id`: give it the name its results carry",
+        )
+    })?;
+    let id = st.check_id(&id, ids, line, "optimizer", &[])?;
+    let params = Params::validate(
+        EXTERNAL_PARAMS,
+        &st.given(fields),
+        st.origin(line, format!("optimizer `{id}`")),
+    )?;
+    Ok(OptimizerEntry {
+        id,
+        kind: EXTERNAL_KIND,
+        config: Arc::new(ExternalConfig {
+            description: params.opt_str("description").map(String::from),
+        }),
+        params,
+    })
 }
 
 /// Checks a paper table's shape and that every cell names an objective x optimizer that
