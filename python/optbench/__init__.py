@@ -5,6 +5,24 @@ point exactly and enforces the budget; `Experiment` runs a suite's trials with y
 optimizer and writes a results folder that `optbench report` and `optbench merge` read.
 """
 
-from ._optbench import BudgetExhausted, Problem, TargetReached, bbob, kinds, problem
+from ._optbench import (
+    BudgetExhausted,
+    Experiment,
+    Problem,
+    TargetReached,
+    Trial,
+    bbob,
+    kinds,
+    problem,
+)
 
-__all__ = ["BudgetExhausted", "Problem", "TargetReached", "bbob", "kinds", "problem"]
+__all__ = [
+    "BudgetExhausted",
+    "Experiment",
+    "Problem",
+    "TargetReached",
+    "Trial",
+    "bbob",
+    "kinds",
+    "problem",
+]

@@ -2,6 +2,7 @@
 //! in Python. Every evaluation goes through the crate's `Evaluator` (the one place that
 //! counts), so a Python optimizer is measured exactly as the built-in ones are.
 
+mod experiment;
 mod problem;
 
 use optbench::base::params::Origin;
@@ -24,8 +25,9 @@ create_exception!(
 create_exception!(
     optbench,
     TargetReached,
-    PyException,
-    "The trial reached its stop value: nothing more is evaluated."
+    BudgetExhausted,
+    "The trial reached its stop value: nothing more is evaluated (a BudgetExhausted, so one \
+     `except` ends an optimizer either way)."
 );
 
 /// A ValueError carrying the crate's message.
@@ -80,15 +82,21 @@ fn toml_value(key: &str, v: &Bound<'_, PyAny>) -> PyResult<toml::Value> {
 
 /// A problem with its own evaluator (no trial: a standalone problem).
 fn standalone(objective: Arc<dyn Objective>, budget: u64, id: String) -> Problem {
-    let ev = Evaluator::new(Arc::clone(&objective), budget, None);
-    Problem::new(objective, Arc::new(Mutex::new(Counter::Live(ev))), id)
+    let (bounds, optimum) = (objective.bounds().clone(), objective.optimum());
+    let name = objective.name().to_string();
+    let ev = Evaluator::new(objective, budget, None);
+    Problem::new(bounds, optimum, name, id, Arc::new(Mutex::new(Counter::Standalone(ev))))
 }
 
 /// Builds an objective of registry kind `kind` from keyword parameters, with the suite's
-/// validation and messages (origin `optbench.problem`).
-fn build(kind: &str, given: BTreeMap<String, (toml::Value, usize)>) -> PyResult<Arc<dyn Objective>> {
+/// validation and messages (origin: the calling function, `optbench.bbob` or `optbench.problem`).
+fn build(
+    caller: &str,
+    kind: &str,
+    given: BTreeMap<String, (toml::Value, usize)>,
+) -> PyResult<Arc<dyn Objective>> {
     let origin = Origin {
-        file: "optbench.problem".into(),
+        file: caller.into(),
         line: 0,
         what: format!("objective kind `{kind}`"),
     };
@@ -110,7 +118,7 @@ fn bbob(function: i64, dimension: i64, instance: i64, budget: Option<i64>) -> Py
     .into_iter()
     .map(|(k, v)| (k.to_string(), (toml::Value::Integer(v), 0)))
     .collect();
-    let objective = build("bbob", given)?;
+    let objective = build("optbench.bbob", "bbob", given)?;
     Ok(standalone(objective, limit, id))
 }
 
@@ -128,7 +136,7 @@ fn make_problem(kind: &str, budget: Option<i64>, params: Option<&Bound<'_, PyDic
             given.insert(key, (value, 0));
         }
     }
-    let objective = build(kind, given)?;
+    let objective = build("optbench.problem", kind, given)?;
     let id = format!("{}-d{}", objective.name(), objective.dim());
     let limit = budget_limit(budget, &id)?;
     Ok(standalone(objective, limit, id))
@@ -146,6 +154,8 @@ fn kinds() -> Vec<&'static str> {
 #[pymodule]
 fn _optbench(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Problem>()?;
+    m.add_class::<experiment::Experiment>()?;
+    m.add_class::<experiment::Trial>()?;
     m.add_function(wrap_pyfunction!(bbob, m)?)?;
     m.add_function(wrap_pyfunction!(make_problem, m)?)?;
     m.add_function(wrap_pyfunction!(kinds, m)?)?;

@@ -4,22 +4,74 @@
 use crate::{BudgetExhausted, TargetReached, value_error};
 use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use optbench::harness::Evaluator;
-use optbench::objective::Objective;
+use optbench::objective::Bounds;
+use optbench::pipeline::external::ExternalTrial;
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 use std::sync::{Arc, Mutex, MutexGuard};
 
-/// Where a problem's evaluations are counted: live while its trial runs, then what the
-/// finished trial spent and found (an Experiment's trial takes the evaluator back).
+/// Where a problem's evaluations are counted: its own evaluator (a standalone problem), an
+/// Experiment's running trial, or what a finished trial spent and found (the Experiment
+/// took the trial back to record it).
 pub enum Counter {
-    Live(Evaluator),
+    Standalone(Evaluator),
+    Trial(ExternalTrial),
     Finished {
         evaluations: u64,
+        budget: u64,
         best: Option<(f64, Vec<f64>)>,
     },
 }
 
-/// Shared between a problem and the trial that owns its evaluator.
+impl Counter {
+    fn used(&self) -> u64 {
+        match self {
+            Counter::Standalone(ev) => ev.used(),
+            Counter::Trial(t) => t.evaluations(),
+            Counter::Finished { evaluations, .. } => *evaluations,
+        }
+    }
+
+    /// The budget; `u64::MAX` is unlimited.
+    fn budget(&self) -> u64 {
+        match self {
+            Counter::Standalone(ev) => ev.budget(),
+            Counter::Trial(t) => t.info().budget,
+            Counter::Finished { budget, .. } => *budget,
+        }
+    }
+
+    fn remaining(&self) -> u64 {
+        match self {
+            Counter::Standalone(ev) => ev.remaining(),
+            Counter::Trial(t) => t.remaining(),
+            Counter::Finished { .. } => 0,
+        }
+    }
+
+    /// (best value, its point), None before the first evaluation.
+    pub fn best(&self) -> Option<(f64, Vec<f64>)> {
+        let (f, x) = match self {
+            Counter::Standalone(ev) => (ev.best(), ev.best_x()),
+            Counter::Trial(t) => (t.best(), t.best_x()),
+            Counter::Finished { best, .. } => return best.clone(),
+        };
+        (!x.is_empty()).then(|| (f, x.to_vec()))
+    }
+
+    /// Evaluates row-major `points` into `out` in order as far as the trial allows; how
+    /// many were evaluated, or None once the trial is finished.
+    fn evaluate_batch(&mut self, points: &[f64], out: &mut [f64]) -> Option<usize> {
+        match self {
+            Counter::Standalone(ev) => Some(ev.evaluate_batch(points, out)),
+            // The only error left after the shape check: the trial was over already.
+            Counter::Trial(t) => Some(t.evaluate_batch(points, out).unwrap_or(0)),
+            Counter::Finished { .. } => None,
+        }
+    }
+}
+
+/// Shared between a problem and the Experiment trial that records it.
 pub type Slot = Arc<Mutex<Counter>>;
 
 /// Locks a slot; a panic inside an objective (reported to Python as PanicException) must not
@@ -32,27 +84,27 @@ pub fn lock(slot: &Slot) -> MutexGuard<'_, Counter> {
 /// (2-D array, one point per row) for an array of values.
 #[pyclass(module = "optbench", frozen)]
 pub struct Problem {
-    objective: Arc<dyn Objective>,
-    slot: Slot,
+    bounds: Bounds,
+    optimum: Option<f64>,
+    name: String,
     id: String,
+    slot: Slot,
 }
 
 impl Problem {
-    /// (best value, its point) so far, live or of the finished trial.
-    fn best(&self) -> Option<(f64, Vec<f64>)> {
-        match &*lock(&self.slot) {
-            Counter::Live(ev) if !ev.best_x().is_empty() => Some((ev.best(), ev.best_x().to_vec())),
-            Counter::Live(_) => None,
-            Counter::Finished { best, .. } => best.clone(),
+    pub fn new(bounds: Bounds, optimum: Option<f64>, name: String, id: String, slot: Slot) -> Self {
+        Problem {
+            bounds,
+            optimum,
+            name,
+            id,
+            slot,
         }
     }
 
-    pub fn new(objective: Arc<dyn Objective>, slot: Slot, id: String) -> Self {
-        Problem {
-            objective,
-            slot,
-            id,
-        }
+    /// (best value, its point) so far, live or of the finished trial.
+    fn best(&self) -> Option<(f64, Vec<f64>)> {
+        lock(&self.slot).best()
     }
 }
 
@@ -81,7 +133,7 @@ impl Problem {
     fn __call__<'py>(&self, py: Python<'py>, x: &Bound<'py, PyAny>) -> PyResult<Py<PyAny>> {
         let a = as_f64_array(py, x)?;
         let a = a.cast_into::<numpy::PyArrayDyn<f64>>()?;
-        let d = self.objective.dim();
+        let d = self.bounds.dim();
         let shape = a.shape().to_vec();
         let single = match shape.as_slice() {
             [n] if *n == d => true,
@@ -108,22 +160,17 @@ impl Problem {
         };
         let points = a.readonly().as_slice()?.to_vec();
         let n = self
-            .objective
-            .bounds()
+            .bounds
             .check_points(&points)
             .map_err(|e| value_error(format!("{}: {e}", self.id)))?;
         let slot = Arc::clone(&self.slot);
-        let outcome = py.detach(move || {
+        let outcome: Result<_, ()> = py.detach(move || {
             let mut counter = lock(&slot);
-            let Counter::Live(ev) = &mut *counter else {
-                return Err(());
-            };
             let mut out = vec![0.0; n];
-            let k = ev.evaluate_batch(&points, &mut out);
+            let k = counter.evaluate_batch(&points, &mut out).ok_or(())?;
             out.truncate(k);
-            let budget_spent = ev.used() >= ev.budget();
-            let budget = ev.budget();
-            Ok((out, k, budget_spent, budget))
+            let budget = counter.budget();
+            Ok((out, k, counter.used() >= budget, budget))
         });
         let (values, k, budget_spent, budget) = match outcome {
             Ok(o) => o,
@@ -166,52 +213,44 @@ impl Problem {
     /// Lower bounds of the search domain.
     #[getter]
     fn lower_bounds<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_slice(py, self.objective.bounds().lower())
+        PyArray1::from_slice(py, self.bounds.lower())
     }
 
     /// Upper bounds of the search domain.
     #[getter]
     fn upper_bounds<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_slice(py, self.objective.bounds().upper())
+        PyArray1::from_slice(py, self.bounds.upper())
     }
 
     #[getter]
     fn dimension(&self) -> usize {
-        self.objective.dim()
+        self.bounds.dim()
     }
 
     /// The known optimal value f* (BBOB: the instance's f_opt), or None.
     #[getter]
     fn optimum(&self) -> Option<f64> {
-        self.objective.optimum()
+        self.optimum
     }
 
     /// Evaluations counted so far by the crate's evaluator (every point of a batch).
     #[getter]
     fn evaluations(&self) -> u64 {
-        match &*lock(&self.slot) {
-            Counter::Live(ev) => ev.used(),
-            Counter::Finished { evaluations, .. } => *evaluations,
-        }
+        lock(&self.slot).used()
     }
 
     /// The evaluation budget, or None when unlimited.
     #[getter]
     fn budget(&self) -> Option<u64> {
-        match &*lock(&self.slot) {
-            Counter::Live(ev) if ev.budget() < u64::MAX => Some(ev.budget()),
-            _ => None,
-        }
+        let b = lock(&self.slot).budget();
+        (b < u64::MAX).then_some(b)
     }
 
     /// Evaluations that may still be made (None when unlimited).
     #[getter]
     fn remaining(&self) -> Option<u64> {
-        match &*lock(&self.slot) {
-            Counter::Live(ev) if ev.budget() < u64::MAX => Some(ev.remaining()),
-            Counter::Live(_) => None,
-            Counter::Finished { .. } => Some(0),
-        }
+        let c = lock(&self.slot);
+        (c.budget() < u64::MAX).then(|| c.remaining())
     }
 
     /// The best value evaluated so far (None before the first evaluation). As the
@@ -230,7 +269,7 @@ impl Problem {
     /// The objective's family, e.g. `griewank`, `bbob`, `bouc-wen`.
     #[getter]
     fn name(&self) -> &str {
-        self.objective.name()
+        &self.name
     }
 
     /// The problem's identity: a suite's objective id, `KIND-Dd`, or COCO's
@@ -246,12 +285,12 @@ impl Problem {
             Some(b) => format!(
                 "<optbench.Problem {} (dimension {}): {used} of {b} evaluations>",
                 self.id,
-                self.objective.dim()
+                self.bounds.dim()
             ),
             None => format!(
                 "<optbench.Problem {} (dimension {}): {used} evaluations>",
                 self.id,
-                self.objective.dim()
+                self.bounds.dim()
             ),
         }
     }
