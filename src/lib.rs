@@ -22,7 +22,7 @@
 //! - [`render`]: the figure and table kit (six figure kinds as SVG and PNG, Markdown and
 //!   LaTeX writers, the bundled font); draws data, not runs.
 //! - [`pipeline`]: suite and plan, the trial runner, the result store, a run (resumable,
-//!   sharded), merge and MPI; the one-trial jobs of `fit` and `simulate`.
+//!   sharded), merge and MPI, runs of optimizers outside optbench; the one-trial jobs of `fit` and `simulate`.
 //! - [`speed`]: what `optbench bench` measures (evaluation paths, harness overhead).
 //! - [`report`]: tables, figures and the IOHprofiler export of a stored run.
 //! - [`diagnose`]: where a model misses a recording and which physics it left out.

@@ -283,6 +283,25 @@ impl ExternalTrial {
         }
         Ok(self.evaluator.evaluate_batch(points, out))
     }
+
+    /// [`Self::evaluate_batch`] on a list of points (plain types, for bindings): the values
+    /// of the points evaluated, in order — fewer than given when the budget ran out or the
+    /// stop value was reached inside the batch.
+    pub fn evaluate_many(&mut self, points: &[Vec<f64>]) -> Result<Vec<f64>, EvalError> {
+        let d = self.info.dim;
+        if let Some((i, p)) = points.iter().enumerate().find(|(_, p)| p.len() != d) {
+            return Err(EvalError::Shape(format!(
+                "point {i} of the batch has {} coordinates, objective `{}` has {d}",
+                p.len(),
+                self.info.objective
+            )));
+        }
+        let flat: Vec<f64> = points.concat();
+        let mut out = vec![0.0; points.len()];
+        let n = self.evaluate_batch(&flat, &mut out)?;
+        out.truncate(n);
+        Ok(out)
+    }
 }
 
 /// What [`ExternalRun::close`] wrote.
