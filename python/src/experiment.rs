@@ -6,6 +6,7 @@
 use crate::problem::{Counter, Problem, Slot, lock};
 use crate::value_error;
 use optbench::Error;
+use optbench::base::limits::MAX_TRIALS;
 use optbench::objective::Bounds;
 use optbench::pipeline::external::{ExternalOptions, ExternalRun, ExternalTrialInfo};
 use optbench::pipeline::run::Overrides;
@@ -55,18 +56,16 @@ impl Experiment {
 
 impl State {
     fn run(&mut self) -> PyResult<&mut ExternalRun> {
-        self.run
-            .as_mut()
-            .ok_or_else(|| value_error("the experiment is closed; open it again with resume=True to continue"))
+        self.run.as_mut().ok_or_else(|| {
+            value_error("the experiment is closed; open it again with resume=True to continue")
+        })
     }
 
     /// Records the trial of plan position `index` whose problem counts in `slot`.
     fn finish(&mut self, index: usize, slot: &Slot) -> PyResult<()> {
         let mut counter = lock(slot);
         let Counter::Trial(t) = &*counter else {
-            return Err(value_error(format!(
-                "trial {index} is finished already"
-            )));
+            return Err(value_error(format!("trial {index} is finished already")));
         };
         if t.evaluations() == 0 {
             let info = t.info();
@@ -127,12 +126,30 @@ impl Experiment {
         overwrite: bool,
         report: bool,
     ) -> PyResult<Self> {
+        // The ranges of `optbench run --trials/--budget`.
+        if let Some(t) = trials
+            && !(1..=MAX_TRIALS).contains(&t)
+        {
+            return Err(value_error(format!(
+                "trials = {t}: expected 1 to {MAX_TRIALS} (the number of trials per objective)"
+            )));
+        }
+        if budget == Some(0) {
+            return Err(value_error(
+                "budget = 0: expected a positive number of evaluations per trial",
+            ));
+        }
         let sys = py.import("sys")?;
         let mut extra = BTreeMap::new();
-        extra.insert("python".to_string(), sys.getattr("version")?.extract::<String>()?);
+        extra.insert(
+            "python".to_string(),
+            sys.getattr("version")?.extract::<String>()?,
+        );
         extra.insert(
             "numpy".to_string(),
-            py.import("numpy")?.getattr("__version__")?.extract::<String>()?,
+            py.import("numpy")?
+                .getattr("__version__")?
+                .extract::<String>()?,
         );
         extra.insert(
             "optbench-python".to_string(),
@@ -355,7 +372,10 @@ impl Trial {
     /// Records the trial (it must have at least one evaluation); its problem evaluates no
     /// more.
     fn finish(&self) -> PyResult<()> {
-        self.experiment.get().state().finish(self.info.index, &self.slot)
+        self.experiment
+            .get()
+            .state()
+            .finish(self.info.index, &self.slot)
     }
 
     fn __repr__(&self) -> String {

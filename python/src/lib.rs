@@ -85,7 +85,13 @@ fn standalone(objective: Arc<dyn Objective>, budget: u64, id: String) -> Problem
     let (bounds, optimum) = (objective.bounds().clone(), objective.optimum());
     let name = objective.name().to_string();
     let ev = Evaluator::new(objective, budget, None);
-    Problem::new(bounds, optimum, name, id, Arc::new(Mutex::new(Counter::Standalone(ev))))
+    Problem::new(
+        bounds,
+        optimum,
+        name,
+        id,
+        Arc::new(Mutex::new(Counter::Standalone(ev))),
+    )
 }
 
 /// Builds an objective of registry kind `kind` from keyword parameters, with the suite's
@@ -100,7 +106,8 @@ fn build(
         line: 0,
         what: format!("objective kind `{kind}`"),
     };
-    optbench::registry::build_objective(kind, &given, origin).map_err(|e| value_error(e.to_string()))
+    optbench::registry::build_objective(kind, &given, origin)
+        .map_err(|e| value_error(e.to_string()))
 }
 
 /// The BBOB problem f`function` (1-24) of `dimension` and `instance`, with the values of
@@ -127,7 +134,11 @@ fn bbob(function: i64, dimension: i64, instance: i64, budget: Option<i64>) -> Py
 /// evaluations, or None for unlimited.
 #[pyfunction(name = "problem")]
 #[pyo3(signature = (kind, *, budget = None, **params))]
-fn make_problem(kind: &str, budget: Option<i64>, params: Option<&Bound<'_, PyDict>>) -> PyResult<Problem> {
+fn make_problem(
+    kind: &str,
+    budget: Option<i64>,
+    params: Option<&Bound<'_, PyDict>>,
+) -> PyResult<Problem> {
     let mut given = BTreeMap::new();
     if let Some(params) = params {
         for (k, v) in params.iter() {

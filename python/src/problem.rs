@@ -120,7 +120,12 @@ fn as_f64_array<'py>(py: Python<'py>, x: &Bound<'py, PyAny>) -> PyResult<Bound<'
             "expected real numbers (an array of float64), got dtype {dtype}"
         )));
     }
-    np.call_method1("ascontiguousarray", (a, "float64"))
+    // asarray keeps a 0-D array 0-D (ascontiguousarray would make it 1-D), so a scalar is
+    // refused by shape rather than taken for a point of dimension 1.
+    let kwargs = pyo3::types::PyDict::new(py);
+    kwargs.set_item("dtype", "float64")?;
+    kwargs.set_item("order", "C")?;
+    np.call_method("asarray", (a,), Some(&kwargs))
 }
 
 #[pymethods]
@@ -193,10 +198,7 @@ impl Problem {
                     "the trial reached its stop value".to_string(),
                 )
             };
-            let msg = format!(
-                "{}: {why}; {k} of the {n} points were evaluated",
-                self.id
-            );
+            let msg = format!("{}: {why}; {k} of the {n} points were evaluated", self.id);
             let e = err.value(py);
             e.setattr("args", PyTuple::new(py, [msg])?)?;
             e.setattr("values", PyArray1::from_vec(py, values))?;

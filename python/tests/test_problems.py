@@ -46,7 +46,7 @@ def test_bbob_matches_cocoex(function):
 
 
 def test_one_point_gives_a_float_a_batch_an_array_equal_to_the_loop():
-    for p in (optbench.bbob(7, 5, 3), optbench.problem("griewank", dim=4)):
+    for p in (optbench.problem("rastrigin", dim=5), optbench.problem("griewank", dim=4)):
         rng = np.random.default_rng(1)
         xs = rng.uniform(p.lower_bounds, p.upper_bounds, size=(9, p.dimension))
         loop = [p(x) for x in xs]
@@ -76,7 +76,7 @@ def test_every_point_is_counted_and_the_best_kept():
 
 
 def test_the_budget_is_exact_and_a_crossing_batch_evaluates_what_fits():
-    p = optbench.bbob(1, 2, 1, budget=5)
+    p = optbench.problem("rosenbrock", dim=2, budget=5)
     assert p.budget == 5 and p.remaining == 5
     first = p(np.zeros((3, 2)))
     assert p.evaluations == 3
@@ -85,7 +85,7 @@ def test_the_budget_is_exact_and_a_crossing_batch_evaluates_what_fits():
         p(xs)
     # The two points within the budget were evaluated, counted and handed back.
     assert e.value.evaluated == 2
-    assert e.value.values.tolist() == optbench.bbob(1, 2, 1)(xs[:2]).tolist()
+    assert e.value.values.tolist() == optbench.problem("rosenbrock", dim=2)(xs[:2]).tolist()
     assert "budget of 5 evaluations is spent; 2 of the 4 points were evaluated" in str(e.value)
     assert p.evaluations == 5 and p.remaining == 0
     assert p.best_value == min(first.min(), e.value.values.min())
@@ -103,12 +103,11 @@ def test_the_budget_is_exact_and_a_crossing_batch_evaluates_what_fits():
         (lambda: optbench.problem("griewank", dim=0), "`dim`"),
         (lambda: optbench.problem("griewank", dim=[2]), "expected a number, a bool or a string"),
         (lambda: optbench.problem("griewank", dim=2, budget=0), "expected a positive number"),
-        (lambda: optbench.bbob(25, 2, 1), "`function`"),
-        (lambda: optbench.bbob(1, 2, 0), "`instance`"),
+        (lambda: optbench.bbob(25, 2, 1), "optbench.bbob: "),
     ],
 )
 def test_bad_problems_are_value_errors_with_the_crates_message(make, message):
-    with pytest.raises(ValueError, match=None) as e:
+    with pytest.raises(ValueError) as e:
         make()
     assert message in str(e.value)
 
@@ -127,7 +126,7 @@ def test_bad_problems_are_value_errors_with_the_crates_message(make, message):
     ],
 )
 def test_bad_points_are_value_errors_and_never_counted(x, message):
-    p = optbench.bbob(3, 2, 1)
+    p = optbench.problem("ackley", dim=2)
     with pytest.raises(ValueError) as e:
         p(x)
     assert message in str(e.value)
