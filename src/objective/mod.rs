@@ -1,6 +1,7 @@
 //! Black-box objectives. An objective knows its domain and how to evaluate points; it knows
 //! nothing of optimizers, budgets or files.
 
+pub mod bbob;
 pub mod functions;
 pub mod hysteresis;
 pub mod operator;

@@ -5,6 +5,8 @@ use crate::base::limits::{self, MAX_DIM, MAX_MAGNITUDE, MAX_POPULATION, MAX_SAMP
 use crate::base::params::{Default as D, Kind, Origin, Params, Spec, probability};
 use crate::data::recording::{Delimiter, ReadOptions, Recording};
 use crate::harness::OptimizerConfig;
+use crate::objective::bbob::instance::MAX_BBOB_DIM;
+use crate::objective::bbob::{Bbob, MAX_BBOB_INSTANCE};
 use crate::objective::functions::{Function, TestFunction};
 use crate::objective::hysteresis::{BoucWenFit, BoucWenScheme, RbfFit};
 use crate::objective::operator::{OperatorFit, OperatorSearch};
@@ -94,6 +96,33 @@ macro_rules! function_kind {
             build: |p| build_function($kind, p),
         }
     };
+}
+
+const BBOB_PARAMS: &[Spec] = &[
+    Spec {
+        name: "function",
+        kind: Kind::Int { min: 1, max: 24 },
+        default: D::Required,
+        help: "COCO's function number: 1-5 separable, 6-9 moderate, 10-14 ill-conditioned, 15-19 multi-modal, 20-24 weakly structured multi-modal",
+    },
+    Spec {
+        name: "dim",
+        kind: size(2, MAX_BBOB_DIM),
+        default: D::Required,
+        help: "number of variables (COCO's suite uses 2, 3, 5, 10, 20, 40)",
+    },
+    Spec {
+        name: "instance",
+        kind: size(1, MAX_BBOB_INSTANCE),
+        default: D::Int(1),
+        help: "COCO's instance number: it fixes the optimum's location and value and the rotations",
+    },
+];
+
+fn build_bbob(p: &Params) -> Result<Arc<dyn Objective>, Error> {
+    let f = Bbob::new(p.usize("function"), p.usize("dim"), p.usize("instance"))
+        .map_err(|e| p.error("function", e))?;
+    Ok(Arc::new(f))
 }
 
 /// Parameters shared by every fitting objective: where the data come from.
@@ -581,6 +610,12 @@ pub fn objective_kinds() -> Vec<ObjectiveKind> {
         function_kind!(Rastrigin, Rastrigin.describe()),
         function_kind!(Rosenbrock, Rosenbrock.describe()),
         function_kind!(Ackley, Ackley.describe()),
+        ObjectiveKind {
+            name: "bbob",
+            help: "COCO's noiseless BBOB function `function` (1-24), instance `instance`, on [-5, 5]^dim, with COCO's values, optimum and instance generator (named bbob-fFF-iII-dDD)",
+            params: BBOB_PARAMS,
+            build: build_bbob,
+        },
         ObjectiveKind {
             name: "bouc-wen",
             help: "fit the dissertation's Bouc-Wen model (eq. 3.1-3.3: d_e, alpha, beta, gamma, n [, d0]) to a recording by free-run simulation",
