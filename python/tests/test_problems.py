@@ -1,6 +1,9 @@
 """Problems: BBOB against COCO's own cocoex, batches, exact counting, budgets, bad input."""
 
 import math
+import os
+import pathlib
+import tempfile
 
 import numpy as np
 import pytest
@@ -13,10 +16,25 @@ INSTANCES = (1, 2, 7, 15)
 
 
 def cocoex_problem(cocoex, f, d, i):
-    suite = cocoex.Suite(
-        "bbob", "", f"function_indices:{f} dimensions:{d} instance_indices:{i}"
-    )
+    suite = cocoex.Suite("bbob", f"instances: {i}", f"function_indices: {f} dimensions: {d}")
     return suite.get_problem_by_function_dimension_instance(f, d, i)
+
+
+def cocoex_optimum_location(problem):
+    """Where cocoex puts the optimum (it only prints it, to a file in the working folder)."""
+    old = os.getcwd()
+    with tempfile.TemporaryDirectory() as d:
+        os.chdir(d)
+        try:
+            problem._best_parameter("print")
+            text = pathlib.Path("._bbob_problem_best_parameter.txt").read_text()
+        finally:
+            os.chdir(old)
+    return np.array([float(v) for v in text.split()])
+
+
+def close(got, expected):
+    return np.abs(got - expected) / np.maximum(1.0, np.abs(expected))
 
 
 @pytest.mark.parametrize("function", range(1, 25))
@@ -30,8 +48,10 @@ def test_bbob_matches_cocoex(function):
             assert ours.dimension == theirs.dimension == d
             assert np.array_equal(ours.lower_bounds, theirs.lower_bounds)
             assert np.array_equal(ours.upper_bounds, theirs.upper_bounds)
-            # cocoex's final target is f_opt + 1e-8.
-            assert ours.optimum == pytest.approx(theirs.final_target_fvalue1 - 1e-8, abs=1e-9)
+            # f_opt: cocoex's value at its optimum, and ours there.
+            xopt = cocoex_optimum_location(theirs)
+            assert close(ours.optimum, theirs(xopt)) <= 1e-12
+            assert close(ours(xopt), ours.optimum) <= 1e-12
             # Inside the box, beyond it (penalties of f20-f24 etc.) and at the centre.
             points = np.vstack([
                 rng.uniform(-5, 5, size=(12, d)),
@@ -40,13 +60,15 @@ def test_bbob_matches_cocoex(function):
             ])
             expected = np.array([theirs(x) for x in points])
             got = ours(points)
-            rel = np.abs(got - expected) / np.maximum(1.0, np.abs(expected))
+            rel = close(got, expected)
             assert rel.max() <= 1e-12, (function, d, i, rel.max())
             theirs.free()
 
 
 def test_one_point_gives_a_float_a_batch_an_array_equal_to_the_loop():
-    for p in (optbench.problem("rastrigin", dim=5), optbench.problem("griewank", dim=4)):
+    problems = (optbench.bbob(7, 5, 3), optbench.problem("rastrigin", dim=5),
+                optbench.problem("griewank", dim=4))
+    for p in problems:
         rng = np.random.default_rng(1)
         xs = rng.uniform(p.lower_bounds, p.upper_bounds, size=(9, p.dimension))
         loop = [p(x) for x in xs]
@@ -103,7 +125,8 @@ def test_the_budget_is_exact_and_a_crossing_batch_evaluates_what_fits():
         (lambda: optbench.problem("griewank", dim=0), "`dim`"),
         (lambda: optbench.problem("griewank", dim=[2]), "expected a number, a bool or a string"),
         (lambda: optbench.problem("griewank", dim=2, budget=0), "expected a positive number"),
-        (lambda: optbench.bbob(25, 2, 1), "optbench.bbob: "),
+        (lambda: optbench.bbob(25, 2, 1), "optbench.bbob: objective kind `bbob`: `function`"),
+        (lambda: optbench.bbob(1, 2, 0), "optbench.bbob: objective kind `bbob`: `instance`"),
     ],
 )
 def test_bad_problems_are_value_errors_with_the_crates_message(make, message):
