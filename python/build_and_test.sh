@@ -10,12 +10,15 @@ cd "$here"
 
 python3 -m venv --system-site-packages .venv
 py="$here/.venv/bin/python"
-# The pinned check packages (maturin, pytest, scipy, cocoex among them).
+# The pinned check packages (maturin, pytest, scipy, cocoex among them); maturin's command
+# in the venv itself, also when the system already has the package.
 "$py" -m pip install -q -r "$root/scripts/requirements-checks.txt"
+maturin_version=$(sed -n 's/^maturin==//p' "$root/scripts/requirements-checks.txt")
+[ -x .venv/bin/maturin ] || "$py" -m pip install -q --ignore-installed "maturin==$maturin_version"
 
 rm -rf target/wheels
 start=$(date +%s)
-"$py" -m maturin build --release --quiet --out target/wheels
+.venv/bin/maturin build --release --quiet --interpreter "$py" --out target/wheels
 echo "wheel built in $(( $(date +%s) - start )) s: $(ls target/wheels)"
 "$py" -m pip install -q --force-reinstall --no-deps target/wheels/optbench-*.whl
 

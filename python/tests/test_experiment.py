@@ -14,7 +14,7 @@ import optbench
 from conftest import HERE, ROOT
 
 SUITE = HERE / "small.toml"
-PLAN = [(o, t) for o in ("sphere-3d", "bbob-f15-d2") for t in range(3)]
+PLAN = [(o, t) for o in ("sphere-3d", "rastrigin-2d") for t in range(3)]
 
 
 def one_plus_one_es(problem, rng):
@@ -227,3 +227,22 @@ def test_the_books_example_runs(tmp_path, cli):
     assert "results in results/pysmall-one-plus-one" in p.stdout
     assert len(traces(folder)) == 6
     cli("report", folder, "-q")
+
+
+def test_a_trial_that_reaches_stop_at_raises_target_reached(tmp_path):
+    suite = tmp_path / "stop.toml"
+    suite.write_text(
+        'name = "stop"\nseed = 1\ntrials = 1\nbudget = 100\nstop_at = 1e-8\n'
+        '[[objective]]\nkind = "sphere"\ndim = 2\n[[optimizer]]\nkind = "random"\n'
+    )
+    with optbench.Experiment(suite, optimizer="lucky", out=tmp_path / "out") as exp:
+        for trial in exp:
+            p = trial.problem
+            assert trial.stop_value == 1e-8
+            with pytest.raises(optbench.TargetReached) as e:
+                p(np.array([[1.0, 1.0], [0.0, 0.0], [2.0, 2.0]]))
+            assert isinstance(e.value, optbench.BudgetExhausted)
+            assert e.value.evaluated == 2 and p.evaluations == 2
+            assert "reached its stop value; 2 of the 3 points" in str(e.value)
+    (record,) = traces(tmp_path / "out")
+    assert record["stopped_at_target"] and record["evaluations"] == 2
