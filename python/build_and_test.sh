@@ -22,8 +22,11 @@ start=$(date +%s)
 echo "wheel built in $(( $(date +%s) - start )) s: $(ls target/wheels)"
 "$py" -m pip install -q --force-reinstall --no-deps target/wheels/optbench-*.whl
 
-(cd "$root" && cargo build --release --quiet)
-export OPTBENCH_BIN="$root/target/release/optbench"
+# The CLI: $OPTBENCH_BIN if set, else the repository's release build.
+if [ -z "${OPTBENCH_BIN:-}" ]; then
+    (cd "$root" && cargo build --release --quiet)
+    export OPTBENCH_BIN="$root/target/release/optbench"
+fi
 
 # Run from outside python/, so `import optbench` is the installed wheel, not the source.
 cd "$root"

@@ -83,7 +83,7 @@ impl State {
             unreachable!("matched above");
         };
         drop(counter);
-        self.run()?.finish(t).map_err(py_error)?;
+        self.run()?.finish(*t).map_err(py_error)?;
         if self.current.as_ref().is_some_and(|(i, _)| *i == index) {
             self.current = None;
         }
@@ -226,7 +226,7 @@ impl Experiment {
         let trial = st.run()?.start(index).map_err(py_error)?;
         let info = trial.info().clone();
         let bounds = Bounds::new(info.lower.clone(), info.upper.clone()).map_err(value_error)?;
-        let slot: Slot = Arc::new(Mutex::new(Counter::Trial(trial)));
+        let slot: Slot = Arc::new(Mutex::new(Counter::Trial(Box::new(trial))));
         let problem = Problem::new(
             bounds,
             info.optimum,

@@ -90,7 +90,7 @@ fn standalone(objective: Arc<dyn Objective>, budget: u64, id: String) -> Problem
         optimum,
         name,
         id,
-        Arc::new(Mutex::new(Counter::Standalone(ev))),
+        Arc::new(Mutex::new(Counter::Standalone(Box::new(ev)))),
     )
 }
 

@@ -14,8 +14,9 @@ use std::sync::{Arc, Mutex, MutexGuard};
 /// Experiment's running trial, or what a finished trial spent and found (the Experiment
 /// took the trial back to record it).
 pub enum Counter {
-    Standalone(Evaluator),
-    Trial(ExternalTrial),
+    Standalone(Box<Evaluator>),
+    // Both boxed: an evaluator and a trial are large beside a finished trial.
+    Trial(Box<ExternalTrial>),
     Finished {
         evaluations: u64,
         budget: u64,
