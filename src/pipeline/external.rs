@@ -86,7 +86,7 @@ pub fn refuse_external(suite: &Suite) -> Result<()> {
         None => Ok(()),
         Some(o) => Err(o.params.entry_error(format!(
             "is of kind `external`: it runs outside optbench, which cannot drive it. Run it \
-             from Python (package `optbench`: `optbench.ExternalRun(SUITE, \"{}\")`) or the \
+             from Python (package `optbench`: `optbench.Experiment(SUITE, \"{}\")`) or the \
              Rust API `optbench::pipeline::external::ExternalRun` into a folder of its own, \
              run the built-in optimizers from a suite without it, and combine the two \
              folders with `optbench merge DIR DIR --out DIR` (docs/03-suites-and-results.md)",
@@ -164,6 +164,8 @@ pub enum EvalError {
     },
     /// The points do not have the objective's dimension.
     Shape(String),
+    /// A coordinate is NaN or infinite (nothing is evaluated or counted).
+    NotFinite(String),
 }
 
 impl fmt::Display for EvalError {
@@ -183,7 +185,7 @@ impl fmt::Display for EvalError {
                     "the trial's budget of {budget} evaluations is spent; finish it"
                 )
             }
-            EvalError::Shape(m) => f.write_str(m),
+            EvalError::Shape(m) | EvalError::NotFinite(m) => f.write_str(m),
         }
     }
 }
@@ -246,8 +248,8 @@ impl ExternalTrial {
         }
     }
 
-    /// The value at `x` (NaN and -inf come back as +inf, as every optimizer sees them),
-    /// counted as one evaluation; an error once the trial is over.
+    /// The value at `x` (a NaN or -inf value comes back as +inf, as every optimizer sees
+    /// it), counted as one evaluation; an error once the trial is over.
     pub fn evaluate(&mut self, x: &[f64]) -> Result<f64, EvalError> {
         if x.len() != self.info.dim {
             return Err(EvalError::Shape(format!(
@@ -257,7 +259,25 @@ impl ExternalTrial {
                 x.len()
             )));
         }
+        self.check_finite(x)?;
         self.evaluator.evaluate(x).ok_or_else(|| self.exhausted())
+    }
+
+    /// Refuses points with a coordinate that is not a number: no objective is defined there.
+    /// Points outside the box are evaluated (every objective is defined there, as in COCO);
+    /// an optimizer that leaves the box gets what it finds.
+    fn check_finite(&self, points: &[f64]) -> Result<(), EvalError> {
+        let d = self.info.dim.max(1);
+        match points.iter().position(|v| !v.is_finite()) {
+            None => Ok(()),
+            Some(i) => Err(EvalError::NotFinite(format!(
+                "coordinate {} of point {} is {}: expected finite numbers (objective `{}`)",
+                i % d,
+                i / d,
+                points[i],
+                self.info.objective
+            ))),
+        }
     }
 
     /// Evaluates the row-major `points` (`out.len()` points of [`Self::dim`] coordinates)
@@ -275,6 +295,7 @@ impl ExternalTrial {
                 points.len()
             )));
         }
+        self.check_finite(points)?;
         if out.is_empty() {
             return Ok(0);
         }

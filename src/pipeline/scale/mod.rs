@@ -264,7 +264,7 @@ fn combine(runs: &[Run<'_>]) -> Result<(Suite, ProgressHeader)> {
         let d = r.dirs[0].display();
         let differs = |field: &str, a: &dyn fmt::Display, b: &dyn fmt::Display| {
             Error::Input(format!(
-                "merge: {field} differs: {a} in {d0}, {b} in {d}; only runs of the same objectives, seed, trials and budgets merge (run them again with the same suite and `--seed`/`--trials`/`--budget`)"
+                "merge: {field} differs between the folders: {a} in {d0}, {b} in {d}; only runs of the same objectives, seed, trials and budgets merge (run them again with the same suite and `--seed`/`--trials`/`--budget`)"
             ))
         };
         if s.seed != s0.seed {
@@ -282,7 +282,7 @@ fn combine(runs: &[Run<'_>]) -> Result<(Suite, ProgressHeader)> {
         };
         if ids(s) != ids(s0) {
             return Err(differs(
-                "the objectives",
+                "the list of objectives",
                 &format!("[{}]", ids(s0)),
                 &format!("[{}]", ids(s)),
             ));
