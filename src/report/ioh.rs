@@ -9,7 +9,11 @@
 //!
 //! - **Function id** `fid`: fixed per objective kind ([`FUNCTION_IDS`]), the same in every
 //!   suite, so 2-D and 30-D Griewank are one function in two dimensions (`DIM`). The meta
-//!   file's `suite` is `optbench`, the name of this numbering.
+//!   file's `suite` is `optbench`, the name of this numbering. A member of COCO's `bbob`
+//!   suite (`Objective::suite_id`) keeps BBOB's numbers instead, as IOH numbers them:
+//!   function 1-24 and COCO's instance, in meta files of suite `BBOB`, one per function
+//!   (`IOHprofiler_f<fid>_bbob.json`). Two objectives of the same BBOB problem share their
+//!   instance: they are runs on one problem.
 //! - **Instance**: a test function is the untransformed function on a box; instance 1 is
 //!   its customary domain, any other box a number derived from the box. A fitting objective
 //!   (`bouc-wen`, `rbf`) is a model fitted to recordings; its instance is derived from every
@@ -122,8 +126,20 @@ pub fn objectives(suite: &Suite) -> Result<Vec<IohObjective<'_>>> {
     // Every objective gets an instance of its own, so `instances.csv` maps one to one.
     let mut taken: BTreeSet<(u16, usize, u16)> = BTreeSet::new();
     for o in &suite.objectives {
-        let fid = function_id(o.kind)?;
         let dim = o.objective.dim();
+        if let Some(s) = o.objective.suite_id().filter(|s| s.suite == "bbob") {
+            // BBOB's own numbers (the kind refuses instances beyond 16 bits).
+            out.push(IohObjective {
+                id: &o.id,
+                kind: o.kind,
+                fid: s.function as u16,
+                dim,
+                instance: u16::try_from(s.instance).unwrap_or(u16::MAX),
+                optimum: o.objective.optimum(),
+            });
+            continue;
+        }
+        let fid = function_id(o.kind)?;
         let b = o.objective.bounds();
         let params: Vec<(String, String)> = o
             .params
@@ -223,10 +239,11 @@ pub fn export(
     create_dir_within(dir, dir)?;
     atomic_write(&dir.join("instances.csv"), csv.as_bytes())?;
 
-    // Kinds in order of first appearance, dimensions in order of first appearance.
+    // (Kind, function id) in order of first appearance (one id per kind except BBOB's),
+    // dimensions in order of first appearance.
     let mut kinds: Vec<(&str, u16)> = Vec::new();
     for o in objectives {
-        if !kinds.iter().any(|k| k.0 == o.kind) {
+        if !kinds.contains(&(o.kind, o.fid)) {
             kinds.push((o.kind, o.fid));
         }
     }
@@ -236,7 +253,7 @@ pub fn export(
             let data_dir = format!("data_f{fid}_{kind}");
             let mut scenarios = Vec::new();
             let mut dims: Vec<usize> = Vec::new();
-            for o in objectives.iter().filter(|o| o.kind == kind) {
+            for o in objectives.iter().filter(|o| o.kind == kind && o.fid == fid) {
                 if !dims.contains(&o.dim) {
                     dims.push(o.dim);
                 }
@@ -244,7 +261,10 @@ pub fn export(
             for dim in dims {
                 let mut dat = String::new();
                 let mut runs = Vec::new();
-                for o in objectives.iter().filter(|o| o.kind == kind && o.dim == dim) {
+                for o in objectives
+                    .iter()
+                    .filter(|o| o.kind == kind && o.fid == fid && o.dim == dim)
+                {
                     let mut of_obj: Vec<&TrialRecord> = records
                         .iter()
                         .filter(|r| *opt == r.optimizer && *o.id == r.objective)
@@ -272,7 +292,7 @@ pub fn export(
             }
             let meta = json!({
                 "version": IOH_FORMAT,
-                "suite": "optbench",
+                "suite": if kind == "bbob" { "BBOB" } else { "optbench" },
                 "function_id": fid,
                 "function_name": kind,
                 "maximization": false,
@@ -419,8 +439,11 @@ mod tests {
 
     #[test]
     fn every_objective_kind_has_one_fixed_function_id() {
+        // `bbob` objectives take BBOB's numbers 1-24 from their suite identity.
         for k in crate::registry::objective_kinds() {
-            function_id(k.name).unwrap();
+            if k.name != "bbob" {
+                function_id(k.name).unwrap();
+            }
         }
         let mut ids: Vec<u16> = FUNCTION_IDS.iter().map(|k| k.1).collect();
         ids.sort();

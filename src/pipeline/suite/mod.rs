@@ -193,7 +193,12 @@ impl Suite {
             let what = format!("objective `{}`", id.as_deref().unwrap_or(kind.name));
             let params = Params::validate(kind.params, &st.given(fields), st.origin(line, what))?;
             let objective = (kind.build)(&params)?;
-            let id = id.unwrap_or_else(|| format!("{}-{}d", kind.name, objective.dim()));
+            // A benchmark-suite member is named by its problem (`bbob-f03-i02-d05`), so
+            // several of one kind and dimension need no ids of their own.
+            let id = id.unwrap_or_else(|| match objective.suite_id() {
+                Some(_) => objective.name().to_string(),
+                None => format!("{}-{}d", kind.name, objective.dim()),
+            });
             let id = st.check_id(&id, &mut ids, line, "objective", &[])?;
             let budget = match own_budget {
                 Some((b, l)) => positive_budget(b).map_err(|m| st.on(l, m))?,
