@@ -14,7 +14,7 @@ import optbench
 from conftest import HERE, ROOT
 
 SUITE = HERE / "small.toml"
-PLAN = [(o, t) for o in ("sphere-3d", "rastrigin-2d") for t in range(3)]
+PLAN = [(o, t) for o in ("sphere-3d", "bbob-f15-d2") for t in range(3)]
 
 
 def one_plus_one_es(problem, rng):
