@@ -109,6 +109,29 @@ impl Bounds {
         // lower + u*width can round up to exactly `upper` but never beyond it.
         (self.lower[i] + u * self.width(i)).min(self.upper[i])
     }
+
+    /// Checks that row-major `points` are whole points of this box's dimension with finite
+    /// coordinates (callers outside the harness, e.g. Python, hand in arbitrary arrays);
+    /// returns how many. Points outside the box are allowed: every objective is defined
+    /// there, as in COCO, and an optimizer that leaves the box pays what it finds.
+    pub fn check_points(&self, points: &[f64]) -> Result<usize, String> {
+        let d = self.dim();
+        if points.len() % d != 0 {
+            return Err(format!(
+                "{} coordinates are not a whole number of points of dimension {d}; expected {d} per point",
+                points.len()
+            ));
+        }
+        if let Some(i) = points.iter().position(|v| !v.is_finite()) {
+            return Err(format!(
+                "coordinate {} of point {} is {}: expected finite numbers",
+                i % d,
+                i / d,
+                points[i]
+            ));
+        }
+        Ok(points.len() / d)
+    }
 }
 
 /// A black-box function to minimise over a box.
@@ -270,5 +293,24 @@ impl Presentation {
                 0.5 * samples as f64 * r * r
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn points_are_checked_for_shape_and_finiteness_not_for_the_box() {
+        let b = Bounds::uniform(2, -1.0, 1.0).unwrap();
+        assert_eq!(b.check_points(&[0.0, 0.5, 7.0, -9.0]), Ok(2));
+        assert_eq!(b.check_points(&[]), Ok(0));
+        let e = b.check_points(&[0.0, 0.5, 1.0]).unwrap_err();
+        assert!(
+            e.contains("3 coordinates") && e.contains("dimension 2"),
+            "{e}"
+        );
+        let e = b.check_points(&[0.0, 0.5, 1.0, f64::NAN]).unwrap_err();
+        assert_eq!(e, "coordinate 1 of point 1 is NaN: expected finite numbers");
     }
 }

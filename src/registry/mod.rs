@@ -2,7 +2,7 @@
 
 use crate::base::error::Error;
 use crate::base::limits::{self, MAX_DIM, MAX_MAGNITUDE, MAX_POPULATION, MAX_SAMPLES};
-use crate::base::params::{Default as D, Kind, Params, Spec, probability};
+use crate::base::params::{Default as D, Kind, Origin, Params, Spec, probability};
 use crate::data::recording::{Delimiter, ReadOptions, Recording};
 use crate::harness::OptimizerConfig;
 use crate::objective::bbob::instance::MAX_BBOB_DIM;
@@ -21,6 +21,7 @@ use crate::optimizer::pso::PsoConfig;
 use crate::optimizer::random_search::RandomSearchConfig;
 use crate::physics::prandtl_ishlinskii::PiForm;
 use crate::physics::rbf::{Mode, Narx, RbfNet};
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -603,6 +604,30 @@ pub fn fitting_kind_names() -> Vec<&'static str> {
         .collect()
 }
 
+/// Builds the objective of kind `name` from suite-style keys (`given`: key -> (value,
+/// line)), for callers outside a suite file (the Python package): the same validation and
+/// messages as a suite's `[[objective]]`.
+pub fn build_objective(
+    name: &str,
+    given: &BTreeMap<String, (toml::Value, usize)>,
+    origin: Origin,
+) -> Result<Arc<dyn Objective>, Error> {
+    let kinds = objective_kinds();
+    let Some(kind) = kinds.iter().find(|k| k.name == name) else {
+        let valid: Vec<_> = kinds.iter().map(|k| k.name).collect();
+        return Err(Error::at(
+            &origin.file,
+            origin.line,
+            format!(
+                "unknown objective kind `{name}`; valid kinds: {}",
+                valid.join(", ")
+            ),
+        ));
+    };
+    let params = Params::validate(kind.params, given, origin)?;
+    (kind.build)(&params)
+}
+
 /// Every optimizer kind's name.
 pub fn optimizer_names() -> Vec<&'static str> {
     optimizer_kinds().iter().map(|k| k.name).collect()
@@ -936,6 +961,44 @@ pub fn default_optimizer(name: &str) -> Option<Arc<dyn OptimizerConfig>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn given(pairs: &[(&str, toml::Value)]) -> BTreeMap<String, (toml::Value, usize)> {
+        pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), (v.clone(), 0)))
+            .collect()
+    }
+
+    fn origin() -> Origin {
+        Origin {
+            file: "optbench.problem".into(),
+            line: 0,
+            what: "objective `x`".into(),
+        }
+    }
+
+    #[test]
+    fn objectives_build_by_kind_name_with_the_suites_messages() {
+        let f = build_objective(
+            "griewank",
+            &given(&[("dim", toml::Value::Integer(3))]),
+            origin(),
+        )
+        .unwrap();
+        assert_eq!((f.name(), f.dim(), f.optimum()), ("griewank", 3, Some(0.0)));
+        let err = |kind, keys| build_objective(kind, &given(keys), origin()).err().unwrap();
+        let e = err("nope", &[]).to_string();
+        assert!(
+            e.starts_with("optbench.problem: unknown objective kind `nope`"),
+            "{e}"
+        );
+        assert!(e.contains("griewank") && e.contains("bouc-wen"), "{e}");
+        let e = err("griewank", &[]);
+        assert!(e.to_string().contains("missing parameter `dim`"), "{e}");
+        let two = toml::Value::Integer(2);
+        let e = err("griewank", &[("dim", two.clone()), ("dims", two)]);
+        assert!(e.to_string().contains("unknown parameter `dims`"), "{e}");
+    }
 
     #[test]
     fn only_relative_csv_paths_are_anchored() {

@@ -106,7 +106,7 @@ impl Bbob {
     }
 
     /// The optimum's location as COCO reports it (`best_parameter`); the value there is
-    /// f_opt (for f20 within 1e-9: COCO rounds its location to 10 digits).
+    /// f_opt up to the rounding of the transformations (`tests/bbob.rs` checks both).
     pub fn x_opt(&self) -> &[f64] {
         &self.best
     }

@@ -238,9 +238,10 @@ impl Suite {
             let given = st.given(fields);
             let mut instances = Vec::new();
             let mut first = None;
-            for &n in numbers.iter().flatten() {
+            // A refused instance is reported at the `instances` line.
+            for (n, at) in numbers.iter().flat_map(|(ns, at)| ns.iter().map(move |&n| (n, *at))) {
                 let mut given = given.clone();
-                given.insert("instance".into(), (toml::Value::Integer(n as i64), line));
+                given.insert("instance".into(), (toml::Value::Integer(n as i64), at));
                 let what = format!("{what}, instance {n}");
                 let params = Params::validate(kind.params, &given, st.origin(line, what))?;
                 instances.push((n, (kind.build)(&params)?));
@@ -573,14 +574,14 @@ fn check_table(
     Ok(())
 }
 
-/// The entry's `instances` list, refused where its kind takes no `instance` or the entry
+/// The entry's `instances` list and its line, refused where its kind takes no `instance` or the entry
 /// also sets one.
 fn instance_list(
     st: &SuiteText<'_>,
     fields: &mut RawEntry,
     kind: &crate::registry::ObjectiveKind,
     line: usize,
-) -> Result<Option<Vec<usize>>> {
+) -> Result<Option<(Vec<usize>, usize)>> {
     let Some(v) = fields.remove("instances") else {
         return Ok(None);
     };
@@ -601,7 +602,7 @@ fn instance_list(
         ));
     }
     instances::parse_list(v.get_ref(), "instances")
-        .map(Some)
+        .map(|n| Some((n, at)))
         .map_err(|m| st.on(at, m))
 }
 
