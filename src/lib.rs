@@ -11,8 +11,8 @@
 //! - [`data`]: recordings read as labs write them, and the drive signals of experiments.
 //! - [`physics`]: the hysteresis models (Bouc-Wen, RBF network, the restoring-force and
 //!   structure extensions), the piezo twin; shared by fitting, diagnosis and control.
-//! - [`objective`]: the black-box [`objective::Objective`] trait, the test functions and the
-//!   hysteresis-fit objectives.
+//! - [`objective`]: the black-box [`objective::Objective`] trait, the test functions (COCO's
+//!   BBOB among them) and the hysteresis-fit objectives.
 //! - [`harness`]: the optimizer contract beside the evaluator (the one place evaluations are
 //!   counted), and the record of a trial.
 //! - [`optimizer`]: GA, PSO, MSGA (one thread per membrane), CMA-ES, DE, L-BFGS, Nelder-Mead,

@@ -177,12 +177,47 @@ fn bad_keys_are_refused_with_what_to_do() {
 fn list_shows_the_bbob_kind() {
     let dir = tempfile::tempdir().unwrap();
     let text = common::ok(&common::optbench(&["list"], dir.path()));
-    assert!(text.contains("bbob"), "{text}");
-    assert!(text.contains("instance"), "{text}");
+    let bbob = text
+        .split("\nobjective `")
+        .find(|k| k.starts_with("bbob`"))
+        .unwrap_or_else(|| panic!("no bbob kind in:\n{text}"));
+    for key in ["| function ", "| dim ", "| instance "] {
+        assert!(bbob.contains(key), "{key} not in {bbob}");
+    }
 }
 
 /// The stored table against cocoex as installed now (skipped without cocoex).
 #[test]
 fn the_stored_table_is_what_cocoex_computes() {
     common::run_check_script("bbob_reference.py", &[Path::new("--check")]);
+}
+
+/// A suite of BBOB problems runs, names each objective by its problem and exports BBOB's
+/// own function and instance numbers to IOH (checked with iohinspector where installed).
+#[test]
+fn a_bbob_suite_runs_and_exports_bbob_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let suite = "name = \"bb\"\nseed = 7\ntrials = 2\nbudget = 100\n\n\
+        [[objective]]\nkind = \"bbob\"\nfunction = 3\ndim = 2\ninstance = 2\n\n\
+        [[objective]]\nkind = \"bbob\"\nfunction = 21\ndim = 2\n\n\
+        [[objective]]\nkind = \"sphere\"\ndim = 2\n\n\
+        [[optimizer]]\nkind = \"random\"\n";
+    std::fs::write(dir.path().join("s.toml"), suite).unwrap();
+    common::ok(&common::optbench(&["run", "s.toml"], dir.path()));
+    let out = dir.path().join("results/bb");
+    let csv = std::fs::read_to_string(out.join("ioh/instances.csv")).unwrap();
+    assert!(
+        csv.contains("\n3,bbob,2,2,bbob-f03-i02-d02,f - f* (f* = 7.766e1)\n"),
+        "{csv}"
+    );
+    assert!(csv.contains("\n21,bbob,2,1,bbob-f21-i01-d02,"), "{csv}");
+    assert!(csv.contains("\n25,sphere,2,1,sphere-2d,"), "{csv}");
+    let meta = common::read_json(&out.join("ioh/random/IOHprofiler_f3_bbob.json"));
+    assert_eq!(meta["suite"], "BBOB");
+    assert_eq!(meta["function_id"], 3);
+    assert!(
+        out.join("ioh/random/data_f21_bbob/IOHprofiler_f21_DIM2.dat")
+            .exists()
+    );
+    common::run_check_script("ioh_check.py", &[&out]);
 }

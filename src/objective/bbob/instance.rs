@@ -105,7 +105,7 @@ pub fn compute_fopt(function: usize, instance: usize) -> f64 {
     let a = bbob2009_gauss(1, seed)[0];
     let b = bbob2009_gauss(1, seed + 1)[0];
     let rounded = (100.0 * 100.0 * a / b + 0.5).floor() / 100.0;
-    rounded.max(-1000.0).min(1000.0)
+    rounded.clamp(-1000.0, 1000.0)
 }
 
 /// The seed of `function`'s instance: `function + 10000 instance`, except that f4 and f18

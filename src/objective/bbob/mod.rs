@@ -17,9 +17,10 @@ use functions as raw;
 use instance::{MAX_BBOB_DIM, compute_fopt, compute_rotation, compute_xopt, instance_seed};
 use transform as t;
 
-/// The largest instance number accepted: seeds grow by 10^4 per instance and COCO's legacy
-/// generator divides them into a C `int`, exact up to about 2.7 x 10^14.
-pub const MAX_BBOB_INSTANCE: usize = 1_000_000;
+/// The largest instance number accepted: the IOH export numbers instances in 16 bits
+/// (COCO's own suites use instances up to 110). The seeds, 10^4 per instance, stay far
+/// inside the range where COCO's legacy generator is exact (its C `int` quotient).
+pub const MAX_BBOB_INSTANCE: usize = u16::MAX as usize;
 
 /// One BBOB problem: function 1-24, dimension, instance, on [-5, 5]^dim.
 #[derive(Debug, Clone)]
@@ -45,6 +46,8 @@ struct Data {
     /// The offset `b` of the affine maps (zero except f9's 0.5).
     b: Vec<f64>,
     coef: Vec<f64>,
+    /// f8's scaling of the shifted point, `max(1, sqrt(n)/8)`.
+    factor: f64,
     rot1: Vec<Vec<f64>>,
     rot2: Vec<Vec<f64>>,
     /// f20: which coordinates the x-hat step negates.
@@ -132,10 +135,9 @@ impl Bbob {
             }
             7 => self.step_ellipsoid(x),
             8 => {
-                let factor = d.coef[0];
                 let z: Vec<f64> = t::shift(x, &d.xopt)
                     .iter()
-                    .map(|v| factor * v - (-1.0))
+                    .map(|v| d.factor * v - (-1.0))
                     .collect();
                 raw::rosenbrock(&z) + fopt
             }
@@ -199,8 +201,8 @@ impl Bbob {
         let mut z = vec![0.0; n];
         for (i, zi) in z.iter_mut().enumerate() {
             let c1 = 10f64.powf(i as f64 / (n - 1) as f64).sqrt();
-            for j in 0..n {
-                *zi += c1 * d.rot2[i][j] * (x[j] - d.xopt[j]);
+            for ((r, xj), oj) in d.rot2[i].iter().zip(x).zip(&d.xopt) {
+                *zi += c1 * r * (xj - oj);
             }
         }
         let x1 = z[0];
@@ -303,8 +305,8 @@ impl Bbob {
         let mut tmp = vec![0.0; n];
         for (i, ti) in tmp.iter_mut().enumerate() {
             let c1 = d.coef[i];
-            for j in 0..n {
-                *ti += c1 * d.rot2[i][j] * (x_hat[j] - mu0);
+            for (r, h) in d.rot2[i].iter().zip(&x_hat) {
+                *ti += c1 * r * (h - mu0);
             }
         }
         let z = t::rotate(&d.rot1, &tmp);
@@ -388,7 +390,7 @@ fn build(function: usize, dim: usize, instance: usize) -> (Data, Vec<f64>) {
         }
         8 => {
             d.xopt = compute_xopt(rseed, n).iter().map(|v| v * 0.75).collect();
-            d.coef = vec![1f64.max((n as f64).sqrt() / 8.0)];
+            d.factor = 1f64.max((n as f64).sqrt() / 8.0);
             d.xopt.clone()
         }
         9 => {
@@ -446,10 +448,11 @@ fn build(function: usize, dim: usize, instance: usize) -> (Data, Vec<f64>) {
             let (r, q) = two_rotations();
             d.m1 = t::flatten(&r);
             d.m2 = vec![0.0; n * n];
-            for i in 0..n {
+            for (i, row) in q.iter().enumerate() {
                 let exponent = 1.0 * i as f64 / (n as f64 - 1.0);
-                for j in 0..n {
-                    d.m2[i * n + j] = q[i][j] * conditioning.sqrt().powf(exponent);
+                let scale = conditioning.sqrt().powf(exponent);
+                for (j, v) in row.iter().enumerate() {
+                    d.m2[i * n + j] = v * scale;
                 }
             }
             d.xopt.clone()

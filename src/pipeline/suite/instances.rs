@@ -64,11 +64,7 @@ pub type BudgetKeys = (Given, Given);
 /// The budget of an objective of `dim` dimensions: its own `budget`, else its own
 /// `budget_per_dim` x `dim`, else the suite's the same way; the suite's two are given
 /// as (value, line) pairs where set.
-pub fn budget(
-    own: BudgetKeys,
-    suite: BudgetKeys,
-    dim: usize,
-) -> Result<u64, (usize, String)> {
+pub fn budget(own: BudgetKeys, suite: BudgetKeys, dim: usize) -> Result<u64, (usize, String)> {
     for (budget, per_dim) in [own, suite] {
         if let (Some((_, l)), Some(_)) = (budget, per_dim) {
             return Err((

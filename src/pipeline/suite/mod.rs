@@ -253,7 +253,14 @@ impl Suite {
                 Some((_, o)) => Arc::clone(o),
                 None => (kind.build)(&params)?,
             };
-            let id = id.unwrap_or_else(|| format!("{}-{}d", kind.name, objective.dim()));
+            // A benchmark-suite member is named by its problem (`bbob-f03-i02-d05`), or by
+            // function and dimension over an `instances` list (`bbob-f03-d05`), so several of
+            // one kind and dimension need no ids of their own.
+            let id = id.unwrap_or_else(|| match objective.suite_id() {
+                Some(s) if !instances.is_empty() => bbob::objective_id(s.function, objective.dim()),
+                Some(_) => objective.name().to_string(),
+                None => format!("{}-{}d", kind.name, objective.dim()),
+            });
             let id = st.check_id(&id, &mut ids, line, "objective", &[])?;
             let budget = instances::budget(own_budget, suite_budget, objective.dim()).map_err(
                 |(l, m)| {
