@@ -9,7 +9,11 @@
 //!
 //! - **Function id** `fid`: fixed per objective kind ([`FUNCTION_IDS`]), the same in every
 //!   suite, so 2-D and 30-D Griewank are one function in two dimensions (`DIM`). The meta
-//!   file's `suite` is `optbench`, the name of this numbering.
+//!   file's `suite` is `optbench`, the name of this numbering. A member of COCO's `bbob`
+//!   suite (`Objective::suite_id`) keeps BBOB's numbers instead, as IOH numbers them:
+//!   function 1-24 and COCO's instance, in meta files of suite `BBOB`, one per function
+//!   (`IOHprofiler_f<fid>_bbob.json`). Two objectives of the same BBOB problem share their
+//!   instance: they are runs on one problem.
 //! - **Instance**: a test function is the untransformed function on a box; instance 1 is
 //!   its customary domain, any other box a number derived from the box. A fitting objective
 //!   (`bouc-wen`, `rbf`) is a model fitted to recordings; its instance is derived from every
@@ -85,13 +89,11 @@ pub struct IohObjective<'a> {
     pub fid: u16,
     pub dim: usize,
     pub instance: u16,
-    /// Subtracted from every value where known (each run's own: see [`Self::instances`]).
+    /// Subtracted from every value where known (each run's own: see [`Self::optimum_of`]).
     pub optimum: Option<f64>,
-    /// A published suite's objective (COCO's BBOB) over an `instances` list: the instance
-    /// trial t ran is `instances[t mod n]`; empty: every trial ran `instance`.
+    /// A BBOB objective over an `instances` list: trial t ran `instances[t mod n]`; empty:
+    /// every trial ran `instance`.
     pub instances: Vec<u16>,
-    /// The meta file's `suite`: `optbench`, or the published suite's name (`BBOB`).
-    pub suite: &'static str,
 }
 
 impl IohObjective<'_> {
@@ -157,23 +159,25 @@ pub fn objectives(suite: &Suite) -> Result<Vec<IohObjective<'_>>> {
     // Every objective gets an instance of its own, so `instances.csv` maps one to one.
     let mut taken: BTreeSet<(u16, usize, u16)> = BTreeSet::new();
     for o in &suite.objectives {
-        // COCO's functions keep COCO's numbers and instances (IOH numbers BBOB so).
-        if let Some(id) = o.objective.suite_id().filter(|id| id.suite == "bbob") {
-            let number = |i: usize| u16::try_from(i).unwrap_or(u16::MAX);
+        let dim = o.objective.dim();
+        if let Some(s) = o.objective.suite_id().filter(|s| s.suite == "bbob") {
+            // BBOB's own numbers (the kind refuses instances beyond 16 bits).
             out.push(IohObjective {
                 id: &o.id,
                 kind: o.kind,
-                fid: number(id.function),
-                dim: o.objective.dim(),
-                instance: number(id.instance),
+                fid: s.function as u16,
+                dim,
+                instance: u16::try_from(s.instance).unwrap_or(u16::MAX),
                 optimum: o.objective.optimum(),
-                instances: o.instances.iter().map(|(i, _)| number(*i)).collect(),
-                suite: "BBOB",
+                instances: o
+                    .instances
+                    .iter()
+                    .map(|(i, _)| u16::try_from(*i).unwrap_or(u16::MAX))
+                    .collect(),
             });
             continue;
         }
         let fid = function_id(o.kind)?;
-        let dim = o.objective.dim();
         let b = o.objective.bounds();
         let params: Vec<(String, String)> = o
             .params
@@ -199,7 +203,6 @@ pub fn objectives(suite: &Suite) -> Result<Vec<IohObjective<'_>>> {
             instance,
             optimum: o.objective.optimum(),
             instances: Vec::new(),
-            suite: "optbench",
         });
     }
     Ok(out)
@@ -275,15 +278,16 @@ pub fn export(
     create_dir_within(dir, dir)?;
     atomic_write(&dir.join("instances.csv"), csv.as_bytes())?;
 
-    // Kinds in order of first appearance, dimensions in order of first appearance.
-    let mut kinds: Vec<(&str, u16, &str)> = Vec::new();
+    // (Kind, function id) in order of first appearance (one id per kind except BBOB's),
+    // dimensions in order of first appearance.
+    let mut kinds: Vec<(&str, u16)> = Vec::new();
     for o in objectives {
-        if !kinds.iter().any(|k| k.0 == o.kind && k.1 == o.fid) {
-            kinds.push((o.kind, o.fid, o.suite));
+        if !kinds.contains(&(o.kind, o.fid)) {
+            kinds.push((o.kind, o.fid));
         }
     }
     for &(opt, opt_kind) in optimizers {
-        for &(kind, fid, fsuite) in &kinds {
+        for &(kind, fid) in &kinds {
             let base = dir.join(opt);
             let data_dir = format!("data_f{fid}_{kind}");
             let mut scenarios = Vec::new();
@@ -327,7 +331,7 @@ pub fn export(
             }
             let meta = json!({
                 "version": IOH_FORMAT,
-                "suite": fsuite,
+                "suite": if kind == "bbob" { "BBOB" } else { "optbench" },
                 "function_id": fid,
                 "function_name": kind,
                 "maximization": false,
@@ -396,7 +400,6 @@ mod tests {
                 instance,
                 optimum,
                 instances: Vec::new(),
-                suite: "optbench",
             }
         }
         let opt = Some(-837.9657745448674);
@@ -476,8 +479,11 @@ mod tests {
 
     #[test]
     fn every_objective_kind_has_one_fixed_function_id() {
+        // `bbob` objectives take BBOB's numbers 1-24 from their suite identity.
         for k in crate::registry::objective_kinds() {
-            function_id(k.name).unwrap();
+            if k.name != "bbob" {
+                function_id(k.name).unwrap();
+            }
         }
         let mut ids: Vec<u16> = FUNCTION_IDS.iter().map(|k| k.1).collect();
         ids.sort();

@@ -56,14 +56,15 @@ fn too_many(key: &str) -> String {
     format!("`{key}`: more than {MAX_INSTANCES} numbers; list fewer")
 }
 
+/// A key's value and the line it stands on, where it is set.
+pub type Given = Option<(i64, usize)>;
+/// The `budget` and `budget_per_dim` of one level (an entry or the suite).
+pub type BudgetKeys = (Given, Given);
+
 /// The budget of an objective of `dim` dimensions: its own `budget`, else its own
 /// `budget_per_dim` x `dim`, else the suite's the same way; the suite's two are given
 /// as (value, line) pairs where set.
-pub fn budget(
-    own: (Option<(i64, usize)>, Option<(i64, usize)>),
-    suite: (Option<(i64, usize)>, Option<(i64, usize)>),
-    dim: usize,
-) -> Result<u64, (usize, String)> {
+pub fn budget(own: BudgetKeys, suite: BudgetKeys, dim: usize) -> Result<u64, (usize, String)> {
     for (budget, per_dim) in [own, suite] {
         if let (Some((_, l)), Some(_)) = (budget, per_dim) {
             return Err((

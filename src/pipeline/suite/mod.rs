@@ -255,13 +255,11 @@ impl Suite {
                 Some((_, o)) => Arc::clone(o),
                 None => (kind.build)(&params)?,
             };
-            // A benchmark-suite member is named by its problem (`bbob-f03-i02-d05`; over an
-            // `instances` list `bbob-f03-d05`), so several of one kind and dimension need no
-            // ids of their own.
+            // A benchmark-suite member is named by its problem (`bbob-f03-i02-d05`), or by
+            // function and dimension over an `instances` list (`bbob-f03-d05`), so several of
+            // one kind and dimension need no ids of their own.
             let id = id.unwrap_or_else(|| match objective.suite_id() {
-                Some(s) if !instances.is_empty() => {
-                    format!("{}-f{:02}-d{:02}", s.suite, s.function, objective.dim())
-                }
+                Some(s) if !instances.is_empty() => bbob::objective_id(s.function, objective.dim()),
                 Some(_) => objective.name().to_string(),
                 None => format!("{}-{}d", kind.name, objective.dim()),
             });
