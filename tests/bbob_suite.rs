@@ -157,7 +157,10 @@ fn bad_instances_and_budgets_are_refused_with_file_line_and_key() {
     let cases: &[(&str, &[&str])] = &[
         (
             "name = \"b\"\nseed = 1\ntrials = 3\nbudget = 10\n[[objective]]\nkind = \"sphere\"\ndim = 2\ninstances = \"1-3\"\n[[optimizer]]\nkind = \"random\"\n",
-            &["b.toml:8", "instance 2 of sphere without shift or rotate is the same problem"],
+            &[
+                "b.toml:8",
+                "instance 2 of sphere without shift or rotate is the same problem",
+            ],
         ),
         (
             "name = \"b\"\nseed = 1\ntrials = 3\nbudget = 10\n[[objective]]\nkind = \"bouc-wen\"\nrecording = \"twin:chirp\"\ninstances = \"1-3\"\n[[optimizer]]\nkind = \"random\"\n",

@@ -116,7 +116,7 @@ impl Bounds {
     /// there, as in COCO, and an optimizer that leaves the box pays what it finds.
     pub fn check_points(&self, points: &[f64]) -> Result<usize, String> {
         let d = self.dim();
-        if points.len() % d != 0 {
+        if !points.len().is_multiple_of(d) {
             return Err(format!(
                 "{} coordinates are not a whole number of points of dimension {d}; expected {d} per point",
                 points.len()

@@ -239,7 +239,10 @@ impl Suite {
             let mut instances = Vec::new();
             let mut first = None;
             // A refused instance is reported at the `instances` line.
-            for (n, at) in numbers.iter().flat_map(|(ns, at)| ns.iter().map(move |&n| (n, *at))) {
+            for (n, at) in numbers
+                .iter()
+                .flat_map(|(ns, at)| ns.iter().map(move |&n| (n, *at)))
+            {
                 let mut given = given.clone();
                 given.insert("instance".into(), (toml::Value::Integer(n as i64), at));
                 let what = format!("{what}, instance {n}");
