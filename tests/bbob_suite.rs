@@ -199,3 +199,34 @@ fn bad_instances_and_budgets_are_refused_with_file_line_and_key() {
         );
     }
 }
+
+#[test]
+fn fewer_trials_than_instances_from_the_command_line_runs_the_first_and_says_so() {
+    let root = tempfile::tempdir().unwrap();
+    std::fs::write(root.path().join("tiny.toml"), TINY).unwrap();
+    let out = optbench(
+        &["run", "tiny.toml", "--out", "r", "-q", "--trials", "2"],
+        root.path(),
+    );
+    ok(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--trials 2 runs only the first 2 of the 3 instances"),
+        "{err}"
+    );
+    let ran: std::collections::BTreeSet<(String, u64)> = traces(&root.path().join("r"))
+        .iter()
+        .filter(|t| t["objective"] != "sphere-i7")
+        .map(|t| {
+            (
+                t["objective"].as_str().unwrap().to_string(),
+                t["trial"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        ran.len(),
+        6 * 2,
+        "two trials of each [bbob] objective: {ran:?}"
+    );
+}

@@ -185,6 +185,21 @@ pub fn prepare(req: &RunRequest) -> Result<Prepared> {
     let mut suite = Suite::load(&req.suite)?;
     crate::pipeline::external::refuse_external(&suite)?;
     req.overrides.apply(&mut suite)?;
+    // The suite file is refused with fewer trials than instances; a smaller --trials is a
+    // quick look, allowed, but said, since part of each list then never runs.
+    if let Some(o) = suite
+        .objectives
+        .iter()
+        .find(|o| o.instances.len() > suite.trials)
+    {
+        eprintln!(
+            "note: --trials {} runs only the first {} of the {} instances objectives such as `{}` list (trial t runs instance t mod n)",
+            suite.trials,
+            suite.trials,
+            o.instances.len(),
+            o.id
+        );
+    }
     let out = req.out.clone().unwrap_or_else(|| {
         let name = match req.shard {
             Some(s) => format!("{}-shard-{}-of-{}", suite.name, s.k, s.n),
