@@ -539,6 +539,17 @@ impl Objective for ExpDecay {
 mod tests {
     use super::*;
 
+    /// The central difference of `f` along coordinate `j` at `x`, the tolerance it is held
+    /// to against the analytic derivative `g`, and the step.
+    fn central_difference(f: &dyn Objective, x: &[f64], j: usize, g: f64) -> (f64, f64, f64) {
+        let h = 1e-6 * (1.0 + x[j].abs());
+        let (mut a, mut b) = (x.to_vec(), x.to_vec());
+        a[j] += h;
+        b[j] -= h;
+        let fd = (f.evaluate(&a) - f.evaluate(&b)) / (2.0 * h);
+        (fd, 1e-5 * (1.0 + fd.abs().max(g.abs())), h)
+    }
+
     fn f(kind: TestFunction, x: &[f64]) -> f64 {
         Function::standard(kind, x.len()).unwrap().evaluate(x)
     }
@@ -627,14 +638,9 @@ mod tests {
                 assert_eq!(v, f.evaluate(&x));
                 let mut r = Vec::new();
                 assert_eq!(f.residuals(&x, &mut r).unwrap_or(v), v);
-                for j in 0..d {
-                    let h = 1e-6 * (1.0 + x[j].abs());
-                    let (mut a, mut b) = (x.clone(), x.clone());
-                    a[j] += h;
-                    b[j] -= h;
-                    let fd = (f.evaluate(&a) - f.evaluate(&b)) / (2.0 * h);
-                    let tol = 1e-5 * (1.0 + fd.abs().max(g[j].abs()));
-                    assert!((fd - g[j]).abs() < tol, "{kind} d{j}: fd {fd} vs {}", g[j]);
+                for (j, &gj) in g.iter().enumerate() {
+                    let (fd, tol, _) = central_difference(f.as_ref(), &x, j, gj);
+                    assert!((fd - gj).abs() < tol, "{kind} d{j}: fd {fd} vs {}", gj);
                 }
             }
         }
@@ -860,23 +866,14 @@ mod tests {
                 f.bounds().sample(&mut rng, &mut x);
                 let mut g = vec![0.0; 4];
                 assert_eq!(f.value_and_gradient(&x, &mut g), Some(f.evaluate(&x)));
-                for j in 0..4 {
-                    let h = 1e-6 * (1.0 + x[j].abs());
-                    let (mut a, mut b) = (x.clone(), x.clone());
-                    a[j] += h;
-                    b[j] -= h;
-                    let fd = (f.evaluate(&a) - f.evaluate(&b)) / (2.0 * h);
-                    let tol = 1e-5 * (1.0 + fd.abs().max(g[j].abs()));
+                for (j, &gj) in g.iter().enumerate() {
+                    let (fd, tol, h) = central_difference(&f, &x, j, gj);
                     // A Schwefel seam between a and b makes the difference meaningless.
-                    if (fd - g[j]).abs() > tol && kind == TestFunction::Schwefel {
-                        assert!((fd * 2.0 * h).abs() > 100.0, "{kind:?}: {fd} vs {}", g[j]);
+                    if (fd - gj).abs() > tol && kind == TestFunction::Schwefel {
+                        assert!((fd * 2.0 * h).abs() > 100.0, "{kind:?}: {fd} vs {}", gj);
                         continue;
                     }
-                    assert!(
-                        (fd - g[j]).abs() < tol,
-                        "{kind:?} d{j}: fd {fd} vs {}",
-                        g[j]
-                    );
+                    assert!((fd - gj).abs() < tol, "{kind:?} d{j}: fd {fd} vs {}", gj);
                 }
             }
         }

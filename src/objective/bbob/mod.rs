@@ -398,15 +398,7 @@ fn build(function: usize, dim: usize, instance: usize) -> (Data, Vec<f64>) {
             let factor = 1f64.max((n as f64).sqrt() / 8.0);
             d.m1 = r.iter().flatten().map(|v| factor * v).collect();
             d.b = vec![0.5; n];
-            (0..n)
-                .map(|col| {
-                    let mut s = 0.0;
-                    for row in &r {
-                        s += row[col];
-                    }
-                    s / (2.0 * factor)
-                })
-                .collect()
+            column_sums_over(&r, 2.0 * factor)
         }
         10 | 11 | 14 => {
             d.xopt = compute_xopt(rseed, n);
@@ -464,15 +456,7 @@ fn build(function: usize, dim: usize, instance: usize) -> (Data, Vec<f64>) {
                 .map(|row| row.into_iter().map(|v| v * scales).collect())
                 .collect();
             d.m1 = t::flatten(&r);
-            (0..n)
-                .map(|col| {
-                    let mut s = 0.0;
-                    for row in &r {
-                        s += row[col];
-                    }
-                    s / (2.0 * scales)
-                })
-                .collect()
+            column_sums_over(&r, 2.0 * scales)
         }
         20 => {
             let u = instance::bbob2009_unif(n, rseed);
@@ -619,4 +603,12 @@ impl Objective for Bbob {
             instance: self.instance,
         })
     }
+}
+
+/// x_opt of f8/f9-style rotated functions: each column of `r` summed in row order (COCO's
+/// order, so the sums agree bit for bit), divided by `divisor`.
+fn column_sums_over(r: &[Vec<f64>], divisor: f64) -> Vec<f64> {
+    (0..r.len())
+        .map(|col| r.iter().fold(0.0, |s, row| s + row[col]) / divisor)
+        .collect()
 }
