@@ -230,19 +230,7 @@ impl Structure {
         let dt = self.ctx.dt;
         let mut cols = vec![vec![1.0; n]];
         match self.form(Effect::OffsetDrift) {
-            Some(Form::Spline) => {
-                // Hats at knots 1..=m over [0, n-1]; the constant column spans knot 0.
-                let m = spline_segments(&self.ctx);
-                let width = (n.max(2) - 1) as f64 / m as f64;
-                for j in 1..=m {
-                    let c = j as f64 * width;
-                    cols.push(
-                        (0..n)
-                            .map(|k| (1.0 - (k as f64 - c).abs() / width).max(0.0))
-                            .collect(),
-                    );
-                }
-            }
+            Some(Form::Spline) => cols.extend(spline_hats(n, spline_segments(&self.ctx))),
             Some(Form::Settling) | None => {}
             Some(_) => {
                 let t: Vec<f64> = (0..n).map(|k| k as f64 * dt / self.ctx.t_ref).collect();
@@ -527,4 +515,18 @@ impl Structure {
             exp: exp_tau.is_some(),
         }
     }
+}
+
+/// The spline drift's hats at knots `1..=m` over `[0, n-1]` (the constant column spans knot
+/// 0), one column of `n` samples each.
+pub(super) fn spline_hats(n: usize, m: usize) -> Vec<Vec<f64>> {
+    let width = (n.max(2) - 1) as f64 / m as f64;
+    (1..=m)
+        .map(|j| {
+            let c = j as f64 * width;
+            (0..n)
+                .map(|k| (1.0 - (k as f64 - c).abs() / width).max(0.0))
+                .collect()
+        })
+        .collect()
 }

@@ -46,6 +46,7 @@ use std::sync::Arc;
 mod columns;
 mod context;
 mod effect;
+mod forecast;
 mod records;
 mod shape;
 mod solve;
@@ -53,6 +54,7 @@ pub use records::{MAX_RECORDS, same_interval};
 
 pub use context::{Context, CoreKind, MAX_PI_OPERATORS, MAX_PREISACH_LEVELS, PiCore, Placement};
 pub use effect::{Effect, Form, ParamSpec};
+pub use forecast::Forecast;
 use shape::{Shape, log_creep_state_taus, log_creep_taus, shift, spline_segments};
 pub use solve::Projection;
 

@@ -609,7 +609,7 @@ fn logarithmic_creep_grows_evenly_per_decade_after_a_step() {
 
 /// A 20 s, 0.5 Hz sine at 100 Hz and the plain model's output on it: the record the
 /// drift forms are added to.
-fn slow_plain_record() -> (Vec<f64>, Context, Structure, Vec<f64>, Vec<f64>) {
+pub(super) fn slow_plain_record() -> (Vec<f64>, Context, Structure, Vec<f64>, Vec<f64>) {
     let dt = 1e-2;
     let u = sine(2000, 0.5, dt);
     let ctx = Context::from_training(&u, dt);
