@@ -7,7 +7,7 @@ plain Bouc-Wen model leaves out, sized so that the best plain fit leaves a
 validation RMSE of `target` times the noise sigma (linearised calibration).
 
   python3 scripts/blind_proof/generate.py --out DIR --master-seed N \
-      --singles K --pairs P --nulls Z        (or --ci)
+      --singles K --pairs P --nulls Z [--oov K]   (or --ci, --ci-oov)
 
 Writes only DIR/case-XXXX/{train.csv, validate.csv, truth.json}.
 """
@@ -45,10 +45,62 @@ TIMING_RANGE = (-1.0, 0.5)  # samples: the sub-sample timing a plain fit may abs
 TIMING_STEP = 1.0 / 16
 MAX_SAMPLES = 40000
 
+# Out of vocabulary: physics none of the eight names describes (README "Out of vocabulary").
+# Sizes are relative (to the stroke, the drive's half span, ...) so that one bound fits all cases.
+OOV_KINDS = ["backlash", "sensor-nonlinearity", "thermal", "dead-zone", "mains", "feed-through"]
+OOV_FORMS = {
+    "backlash": ["play"],
+    "sensor-nonlinearity": ["quadratic", "periodic"],
+    "thermal": ["joule", "dielectric"],
+    "dead-zone": ["crossover"],
+    "mains": ["50Hz", "60Hz"],
+    "feed-through": ["capacitive"],
+}
+CI_OOV = 3  # --ci-oov: cases (backlash, sensor-nonlinearity, thermal)
+SENSOR_ADDITIVE = ("offset-drift", "mains")  # added to the sensor's output per record, not simulated
+
 
 # ------------------------------------------------------------------ drawing
+def draw_oov(rng, name, fs):
+    """Form and settings of an out-of-vocabulary effect (size relative, see simulate.oov_stages)."""
+    form = OOV_FORMS[name][int(rng.integers(len(OOV_FORMS[name])))]
+    e = {"form": form, "oov": True}
+    if name == "backlash":
+        e.update(size=0.01, bounds=[1e-5, 0.5], unit="gap width / stroke")
+    elif name == "sensor-nonlinearity":
+        e.update(sign=float(rng.choice([-1.0, 1.0])))
+        if form == "quadratic":
+            e.update(size=0.01, bounds=[1e-6, 1.0], unit="c: error c (y - y_mid)^2 / stroke")
+        else:
+            e.update(size=0.001, bounds=[1e-6, 0.2], unit="cyclic error amplitude / stroke",
+                     periods_per_stroke=rng.uniform(3.0, 30.0), phase=rng.uniform(0.0, 2 * np.pi))
+    elif name == "thermal":
+        e.update(size=0.01, bounds=[1e-6, 2.0], unit="expansion / stroke per mean training power",
+                 tau_s=rng.uniform(2.0, 20.0), start=rng.uniform(0.0, 1.0), sign=float(rng.choice([-1.0, 1.0])))
+    elif name == "dead-zone":
+        e.update(size=0.02, bounds=[1e-5, 0.6], unit="dead band half-width / half the drive span")
+    elif name == "mains":
+        f = {"50Hz": 50.0, "60Hz": 60.0}[form] * (1.0 + rng.uniform(-0.002, 0.002))
+        e.update(size=0.001, bounds=[1e-6, 0.5], unit="amplitude / stroke", freq_hz=f,
+                 third_harmonic=rng.uniform(0.0, 0.5))
+    elif name == "feed-through":
+        e.update(size=0.001, bounds=[1e-6, 1.0], unit="/ stroke per RMS high-passed training drive",
+                 tau_s=rng.uniform(0.5, 3.0) / fs, sign=float(rng.choice([-1.0, 1.0])))
+    return e
+
+
+def mains_shape(rng, e, N, fs):
+    """Unit mains pick-up of one record (its own phase): a line and its third harmonic."""
+    t = np.arange(N) / fs
+    ph = rng.uniform(0.0, 2 * np.pi, 2)
+    w = 2 * np.pi * e["freq_hz"]
+    return np.sin(w * t + ph[0]) + e["third_harmonic"] * np.sin(3 * w * t + ph[1]), ph
+
+
 def draw_effect(rng, name, fs):
     """Form and settings of one effect; `size` is a starting value, `bounds` the calibration range."""
+    if name in OOV_FORMS:
+        return draw_oov(rng, name, fs)
     form = FORMS[name][int(rng.integers(len(FORMS[name])))]
     e = {"form": form}
     if name == "delay":
@@ -112,13 +164,14 @@ def drift_shape(rng, e, N, fs):
         t / 10.0 + 0.3 * np.sin(2 * np.pi * t / rng.uniform(20, 60) + rng.uniform(0, 2 * np.pi)))
 
 
-def draw_case(master, index, effects, ci=False, attempt=0):
+def draw_case(master, index, effects, ci=False, attempt=0, seconds=None):
     """All random settings of a case (no simulation), from default_rng([master, index])
-    (a redraw: [master, index, attempt])."""
+    (a redraw: [master, index, attempt]); `seconds` (lo, hi) overrides the record lengths' range."""
     rng = np.random.default_rng([master, index] if attempt == 0 else [master, index, attempt])
     fs = float(np.exp(rng.uniform(np.log(500.0), np.log(2000.0 if ci else 5000.0))))
     M = max(8, int(math.ceil(8000.0 / fs)))
-    lens = [rng.uniform(5.0, 8.0) if ci else rng.uniform(5.0, 40.0) for _ in range(2)]
+    span = seconds if seconds is not None else ((5.0, 8.0) if ci else (5.0, 40.0))
+    lens = [rng.uniform(*span) for _ in range(2)]
     Ns = [min(int(L * fs) + 1, MAX_SAMPLES) for L in lens]
     polarity = ["unipolar", "bipolar"][int(rng.integers(2))]
     hold = ["zoh", "linear", "bandlimited"][int(rng.integers(3))]
@@ -144,6 +197,9 @@ def draw_case(master, index, effects, ci=False, attempt=0):
     if "offset-drift" in eff:
         for r in records:
             r["drift_shape"] = drift_shape(rng, eff["offset-drift"], r["N"], fs)
+    if "mains" in eff:
+        for r in records:
+            r["mains_shape"], r["mains_phase"] = mains_shape(rng, eff["mains"], r["N"], fs)
     case["noise_rng_seed"] = int(rng.integers(2 ** 63))
     return case
 
@@ -152,7 +208,7 @@ def draw_case(master, index, effects, ci=False, attempt=0):
 def sim_effects(case, effects, timing=0.0):
     """Noise-free outputs (train, validate) with the given effects (the drift included)."""
     fs, M = case["fs"], case["oversample"]
-    eff = {k: v for k, v in effects.items() if k != "offset-drift"}
+    eff = {k: v for k, v in effects.items() if k not in SENSOR_ADDITIVE}
     if timing != 0.0:
         eff = dict(eff)
         eff["delay"] = {"form": "fractional", "size": timing + eff.get("delay", {}).get("size", 0.0)}
@@ -161,6 +217,8 @@ def sim_effects(case, effects, timing=0.0):
         y = sim.simulate_record(r["fine"], 1.0 / fs, M, case["plain"], eff, case["consts"], case["hold"])
         if "offset-drift" in effects and effects["offset-drift"]["size"] != 0.0:
             y = y + effects["offset-drift"]["size"] * r["drift_shape"]
+        if "mains" in effects and effects["mains"]["size"] != 0.0:
+            y = y + effects["mains"]["size"] * case["consts"]["stroke"] * r["mains_shape"]
         out.append(y)
     return out
 
@@ -317,12 +375,30 @@ MIN_TRAIN_SIGNATURE = 0.5
 MAX_ATTEMPTS = 6
 
 
-def build_case(master, index, effects, ci=False):
+def oov_consts(case, lin, stroke):
+    """Scales of the out-of-vocabulary stages, from the plain model's training output and drive."""
+    lo, hi = signals.RANGES[case["polarity"]]
+    y0 = lin.base[0]
+    c = {"stroke": stroke, "y_mid": float(0.5 * (np.max(y0) + np.min(y0))),
+         "v_mid": sim.GAIN * 0.5 * (lo + hi), "v_half": sim.GAIN * 0.5 * (hi - lo)}
+    eff = case["effects"]
+    v = sim.GAIN * case["records"][0]["fine"]
+    dtf = 1.0 / (case["fs"] * case["oversample"])
+    if "thermal" in eff:
+        c["p_ref"] = float(np.mean(sim.drive_power(v, dtf, eff["thermal"]["form"])))
+    if "feed-through" in eff:
+        hp = sim.high_pass(v, dtf, eff["feed-through"]["tau_s"], zoh=case["hold"] == "zoh")
+        c["hp_ref"] = float(np.sqrt(np.mean(hp[::case["oversample"]] ** 2)))
+    return c
+
+
+def build_case(master, index, effects, ci=False, seconds=None):
     """Draw, calibrate and simulate one case; return (truth, [(u, y) train, validate])."""
     t0 = time.perf_counter()
     best = None
+    oov = [n for n in effects if n in OOV_FORMS]
     for attempt in range(MAX_ATTEMPTS):
-        case = draw_case(master, index, effects, ci, attempt)
+        case = draw_case(master, index, effects, ci, attempt, seconds)
         fs, M = case["fs"], case["oversample"]
         tr = case["records"][0]
         vref = sim.GAIN * max(np.max(np.abs(r["fine"])) for r in case["records"])
@@ -334,6 +410,8 @@ def build_case(master, index, effects, ci=False):
         stroke = float(np.ptp(lin.base[0]))
         sigma = case["noise_fraction"] * stroke
         qstep = case["quant_fraction"] * sigma
+        if oov:
+            case["consts"].update(oov_consts(case, lin, stroke))
         if effects:
             achieved, tau, reached, info = calibrate(case, lin, sigma)
         else:
@@ -368,6 +446,18 @@ def build_case(master, index, effects, ci=False):
             e["in_nominal_range"] = bool(0.3 <= e["size"] <= 3.0)
         elif n == "offset-drift":
             e["drift_rms_mm"] = [float(e["size"] * np.sqrt(np.mean(r["drift_shape"] ** 2))) for r in case["records"]]
+        elif n == "backlash":
+            e["gap_mm"] = e["size"] * stroke
+        elif n == "sensor-nonlinearity":
+            e["peak_error_mm"] = e["size"] * stroke / (4 if e["form"] == "quadratic" else 1)
+        elif n == "dead-zone":
+            e["half_width_drive_v"] = e["size"] * case["consts"]["v_half"]
+            e["half_width_command_v"] = e["half_width_drive_v"] / sim.GAIN
+        elif n == "mains":
+            e["amplitude_mm"] = e["size"] * stroke
+            e["phases_rad"] = [r["mains_phase"] for r in case["records"]]
+        elif n in ("thermal", "feed-through"):
+            e["scale_mm"] = e["size"] * stroke
         e.update(info.get(n, {}))
         e["at_bound"] = bool(e["size"] <= e["bounds"][0] * 1.0001 or e["size"] >= e["bounds"][1] * 0.9999)
         eff_truth[n] = e
@@ -389,11 +479,16 @@ def build_case(master, index, effects, ci=False):
         "train_signature_sigma": info.get("train_signature_sigma"), "attempts": attempt + 1,
         "generate_s": time.perf_counter() - t0,
     }
+    if oov:
+        # No name of the vocabulary is right: `effects` stays empty (not a null: see `oov`).
+        truth.update(kind="oov", effects=[], oov=oov[0], oov_form=case["effects"][oov[0]]["form"])
     return _jsonable(truth), out
 
 
-def case_list(singles, pairs, nulls, master):
-    """[(index, effects)]: singles round-robin over the effects, pairs drawn per case, then nulls."""
+def case_list(singles, pairs, nulls, master, oov=0):
+    """[(index, effects)]: singles round-robin over the effects, pairs drawn per case, then nulls,
+    then out-of-vocabulary cases round-robin over OOV_KINDS (after the others: their numbering
+    does not depend on `oov`)."""
     cases = []
     i = 0
     for k in range(singles):
@@ -406,11 +501,14 @@ def case_list(singles, pairs, nulls, master):
     for _ in range(nulls):
         cases.append((i, []))
         i += 1
+    for k in range(oov):
+        cases.append((i, [OOV_KINDS[k % len(OOV_KINDS)]]))
+        i += 1
     return cases
 
 
-def write_case(out, master, index, effects, ci):
-    truth, recs = build_case(master, index, effects, ci)
+def write_case(out, master, index, effects, ci, seconds=None):
+    truth, recs = build_case(master, index, effects, ci, seconds)
     d = os.path.join(out, f"case-{index:04d}")
     os.makedirs(d, exist_ok=True)
     for name, (u, y) in zip(["train.csv", "validate.csv"], recs):
@@ -424,16 +522,30 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", required=True)
     ap.add_argument("--master-seed", type=int, default=1)
-    ap.add_argument("--singles", type=int, default=8)
+    ap.add_argument("--singles", type=int, default=None, help="default 8")
     ap.add_argument("--pairs", type=int, default=0)
     ap.add_argument("--nulls", type=int, default=0)
+    ap.add_argument("--oov", type=int, default=0,
+                    help="out-of-vocabulary cases after the others (round-robin over " + ", ".join(OOV_KINDS) + ")")
     ap.add_argument("--ci", action="store_true", help="8 singles (one per effect), 2 pairs, 2 nulls, 5-8 s at <= 2 kHz")
+    ap.add_argument("--ci-oov", action="store_true",
+                    help=f"{CI_OOV} out-of-vocabulary cases with the --ci record lengths (after --ci's 12 if given, "
+                    "else alone, numbered from 0)")
+    ap.add_argument("--seconds", type=float, nargs=2, metavar=("LO", "HI"), default=None,
+                    help="record lengths drawn from [LO, HI] s (default 5-40 s, --ci 5-8 s; at most 40,000 samples)")
     ap.add_argument("--only", type=str, default=None, help="comma-separated case indices to (re)generate")
     ap.add_argument("--jobs", type=int, default=1, help="cases generated at once (processes)")
     a = ap.parse_args(argv)
     if a.ci:
         a.singles, a.pairs, a.nulls = 8, 2, 2
-    cases = case_list(a.singles, a.pairs, a.nulls, a.master_seed)
+    if a.ci_oov:
+        a.oov = CI_OOV
+        if not a.ci and a.singles is None:
+            a.singles = 0
+        a.ci = True
+    if a.singles is None:
+        a.singles = 8
+    cases = case_list(a.singles, a.pairs, a.nulls, a.master_seed, a.oov)
     if a.only:
         keep = {int(x) for x in a.only.split(",")}
         cases = [c for c in cases if c[0] in keep]
@@ -442,12 +554,13 @@ def main(argv=None):
     if a.jobs > 1:
         from concurrent.futures import ProcessPoolExecutor
         with ProcessPoolExecutor(max_workers=a.jobs) as ex:
-            futs = [(i, e, ex.submit(write_case, a.out, a.master_seed, i, e, a.ci)) for i, e in cases]
+            futs = [(i, e, ex.submit(write_case, a.out, a.master_seed, i, e, a.ci, a.seconds)) for i, e in cases]
             done = [(i, e, f.result()) for i, e, f in futs]
     else:
-        done = ((i, e, write_case(a.out, a.master_seed, i, e, a.ci)) for i, e in cases)
+        done = ((i, e, write_case(a.out, a.master_seed, i, e, a.ci, a.seconds)) for i, e in cases)
     for index, effects, t in done:
-        print(f"case-{index:04d} {'+'.join(effects) or 'none':28s} "
+        label = f"oov:{t['oov']}" if t.get("oov") else "+".join(effects) or "none"
+        print(f"case-{index:04d} {label:28s} "
               f"{'/'.join(t['forms'].values()) or '-':28s} fs={t['fs_hz']:.0f} "
               f"target={t['target_ratio']:.2f} achieved={t['achieved_ratio_linearised']:.2f} "
               f"{'' if t['target_reached'] else '(not reached) '}{t['generate_s']:.1f}s", flush=True)

@@ -82,6 +82,8 @@ def main(argv=None):
                     help="exit 1 if the overall exact-match rate is below this fraction (a regression guard for CI)")
     ap.add_argument("--max-false-alarms", type=int, default=None,
                     help="exit 1 if more null cases than this get a name")
+    ap.add_argument("--min-oov", type=float, default=None,
+                    help="exit 1 if the out-of-vocabulary pass rate is below this fraction (or there are no such cases)")
     argv = list(sys.argv[1:] if argv is None else argv)
     for i, x in enumerate(argv[:-1]):  # "--extra-args '--bootstrap 9'": a value that starts with a dash
         if x == "--extra-args":
@@ -102,7 +104,8 @@ def main(argv=None):
             dj = os.path.join(d, "diagnosis", "diagnosis.json")
             if os.path.exists(dj):
                 named = ",".join(score.named_set(json.load(open(dj)))) or "none"
-            truth = ",".join(json.load(open(os.path.join(d, "truth.json")))["effects"]) or "none"
+            t = json.load(open(os.path.join(d, "truth.json")))
+            truth = f"oov:{t['oov']}" if t.get("oov") else ",".join(t["effects"]) or "none"
             print(f"{os.path.basename(d)} truth={truth:28s} named={named:28s} "
                   f"{'' if wall is None else f'{wall:.1f}s'} {st}", flush=True)
 
@@ -136,6 +139,12 @@ def main(argv=None):
     fa = s["nulls_false_alarm"]
     if a.max_false_alarms is not None and fa["k"] > a.max_false_alarms:
         failed.append(f"{fa['k']} false alarms on {fa['n']} null cases (allowed {a.max_false_alarms})")
+    if a.min_oov is not None:
+        ov = s.get("oov", {}).get("overall", {"k": 0, "n": 0})
+        if ov["n"] == 0:
+            failed.append("--min-oov given but no out-of-vocabulary case was scored")
+        elif ov["k"] < a.min_oov * ov["n"]:
+            failed.append(f"out-of-vocabulary passes {ov['k']}/{ov['n']} below {a.min_oov:.0%}")
     if failed:
         sys.exit("blind proof: " + "; ".join(failed))
 

@@ -1,11 +1,15 @@
 """Scoring of blind-proof cases: exact match, Wilson intervals, confusion, report."""
 from __future__ import annotations
 
+import json
 import math
 import statistics
 from collections import Counter, defaultdict
 
 EFFECTS = ["delay", "input-lag", "saturation", "asymmetry", "rate-dependence", "creep", "dynamics", "offset-drift"]
+OOV_KINDS = ["backlash", "sensor-nonlinearity", "thermal", "dead-zone", "mains", "feed-through"]
+# An out-of-vocabulary case the named effects approximate to this many times the tool's noise floor passes.
+OOV_APPROXIMATED = 1.15
 
 
 def wilson(k, n, z=1.959963984540054):
@@ -29,10 +33,63 @@ def named_set(diagnosis):
     return sorted({normalise(n) for n in diagnosis.get("left_out", [])})
 
 
+def is_oov(truth):
+    return bool(truth.get("oov"))
+
+
+def outside_vocabulary(diagnosis):
+    """What a diagnosis says lies outside its names (a future field): None when absent, else
+    the `depends_on` list (or a note of the field's value)."""
+    ov = diagnosis.get("outside_vocabulary")
+    if ov is None:
+        return None
+    if isinstance(ov, dict):
+        dep = ov.get("depends_on")
+        return [str(x) for x in dep] if isinstance(dep, list) else [json_short(ov)]
+    if isinstance(ov, list):
+        return [str(x) for x in ov]
+    if ov is True and isinstance(diagnosis.get("depends_on"), list):
+        return [str(x) for x in diagnosis["depends_on"]]
+    return [json_short(ov)]
+
+
+def json_short(x):
+    t = json.dumps(x, sort_keys=True)
+    return t if len(t) <= 80 else t[:77] + "..."
+
+
+def oov_verdict(diagnosis):
+    """Pass or fail of an out-of-vocabulary case (no name of the vocabulary is right).
+
+    Passes when the tool does not claim to have explained it (`unexplained` true: structure
+    left that no name covers), or when what it named (or the plain model, if nothing)
+    approximates it to the noise: final validation RMSE / noise floor <= OOV_APPROXIMATED.
+    Fails when `unexplained` is false while the final validation RMSE is above that: a
+    name claimed with confidence that does not fit ("confident wrong name"), or nothing
+    named and the structure left unflagged ("silent")."""
+    named = named_set(diagnosis)
+    unexplained = bool(diagnosis.get("unexplained"))
+    fin = (diagnosis.get("final") or {}).get("validate_rmse")
+    floor = diagnosis.get("noise_floor")
+    ratio = fin / floor if fin is not None and floor else None
+    approximated = ratio is not None and ratio <= OOV_APPROXIMATED
+    if unexplained:
+        outcome = "unexplained (named, not claimed)" if named else "unexplained"
+    elif approximated:
+        outcome = "approximated by the names" if named else "plain model at the noise"
+    else:
+        outcome = "confident wrong name" if named else "silent"
+    # Stricter, reported only: a name beside `unexplained` still points the user at the wrong physics.
+    strict = approximated or (unexplained and not named)
+    return {"pass": unexplained or approximated, "strict": strict, "outcome": outcome, "named": named,
+            "unexplained": unexplained, "final_over_floor": ratio,
+            "outside_vocabulary": outside_vocabulary(diagnosis)}
+
+
 def generator_notes(truth):
     """What the generator flags about a case: target not reached, sizes outside the nominal range or at a bound."""
     notes = []
-    if truth.get("effects") and not truth.get("target_reached", True):
+    if (truth.get("effects") or is_oov(truth)) and not truth.get("target_reached", True):
         notes.append("target not reached")
     for n, e in (truth.get("effect_settings") or {}).items():
         if e.get("in_nominal_range") is False:
@@ -49,14 +106,17 @@ def rate(k, n):
 
 def score(results):
     """results: list of dicts with id, truth (truth.json), diagnosis (diagnosis.json or None), wall_s."""
-    done = [r for r in results if r.get("diagnosis") is not None]
-    for r in done:
+    done_all = [r for r in results if r.get("diagnosis") is not None]
+    for r in done_all:
         r["named"] = named_set(r["diagnosis"])
         r["exact"] = set(r["named"]) == set(r["truth"]["effects"])
+    # Out-of-vocabulary cases have no right name: scored on their own (`oov`), not in the groups below.
+    oov_done = [r for r in done_all if is_oov(r["truth"])]
+    done = [r for r in done_all if not is_oov(r["truth"])]
     singles = [r for r in done if len(r["truth"]["effects"]) == 1]
     pairs = [r for r in done if len(r["truth"]["effects"]) == 2]
     nulls = [r for r in done if not r["truth"]["effects"]]
-    out = {"cases": len(results), "scored": len(done), "missing": [r["id"] for r in results if r.get("diagnosis") is None]}
+    out = {"cases": len(results), "scored": len(done_all), "missing": [r["id"] for r in results if r.get("diagnosis") is None]}
     out["singles"] = rate(sum(r["exact"] for r in singles), len(singles))
     out["pairs"] = rate(sum(r["exact"] for r in pairs), len(pairs))
     out["nulls_false_alarm"] = rate(sum(bool(r["named"]) for r in nulls), len(nulls))
@@ -86,7 +146,7 @@ def score(results):
         for e, f in r["truth"]["forms"].items():
             forms[f"{e}/{f}"].append(r["exact"])
     out["per_form"] = {k: rate(sum(v), len(v)) for k, v in sorted(forms.items())}
-    walls = [(r["wall_s"], r["id"]) for r in done if r.get("wall_s") is not None]
+    walls = [(r["wall_s"], r["id"]) for r in done_all if r.get("wall_s") is not None]
     if walls:
         out["wall_s"] = {"median": statistics.median(w for w, _ in walls), "worst": max(walls)[0],
                          "worst_case": max(walls)[1], "total": sum(w for w, _ in walls),
@@ -111,8 +171,39 @@ def score(results):
     out["failed"] = [{"id": r["id"], "truth": r["truth"]["effects"], "forms": r["truth"]["forms"],
                       "named": r["named"], "notes": generator_notes(r["truth"]), **r["ratios"]}
                      for r in done if not r["exact"]]
-    out["generator_flags"] = {r["id"]: generator_notes(r["truth"]) for r in done if generator_notes(r["truth"])}
+    out["generator_flags"] = {r["id"]: generator_notes(r["truth"]) for r in done_all if generator_notes(r["truth"])}
+    if oov_done:
+        out["oov"] = score_oov(oov_done)
     return out
+
+
+def score_oov(rs):
+    """Per out-of-vocabulary case its verdict; per kind and overall the pass rate."""
+    cases = []
+    for r in rs:
+        t, d = r["truth"], r["diagnosis"]
+        v = oov_verdict(d)
+        sig = t["noise_sigma_mm"]
+        fin = (d.get("final") or {}).get("validate_rmse")
+        base = (d.get("baseline") or {}).get("validate_rmse")
+        cases.append({"id": r["id"], "kind": t["oov"], "form": t.get("oov_form"), **v,
+                      "target": t["target_ratio"], "linearised": t["achieved_ratio_linearised"],
+                      "baseline_over_sigma": base / sig if base is not None else None,
+                      "final_over_sigma": fin / sig if fin is not None else None,
+                      "floor_over_sigma": d["noise_floor"] / sig if d.get("noise_floor") else None,
+                      "notes": generator_notes(t)})
+    kinds = sorted({c["kind"] for c in cases}, key=lambda k: (OOV_KINDS.index(k) if k in OOV_KINDS else 99, k))
+    per = {}
+    for k in kinds:
+        cs = [c for c in cases if c["kind"] == k]
+        per[k] = {**rate(sum(c["pass"] for c in cs), len(cs)), "strict": rate(sum(c["strict"] for c in cs), len(cs)),
+                  "named": dict(Counter(n for c in cs for n in c["named"])),
+                  "outcomes": dict(Counter(c["outcome"] for c in cs))}
+    return {"threshold_final_over_floor": OOV_APPROXIMATED,
+            "overall": rate(sum(c["pass"] for c in cases), len(cases)),
+            "strict": rate(sum(c["strict"] for c in cases), len(cases)),
+            "per_kind": per, "cases": cases,
+            "outcomes": dict(Counter(c["outcome"] for c in cases))}
 
 
 def _fmt(x):
@@ -178,4 +269,34 @@ def markdown(s, title="Blind proof of optbench diagnose"):
                      f"{_num(f['linearised'])} | {_num(f['baseline'])} | {'; '.join(f['notes'])} |")
     L += ["", f"Cases the generator flags: {len(s.get('generator_flags', {}))}"
           + "".join(f"\n- {k}: {'; '.join(v)}" for k, v in s.get("generator_flags", {}).items())]
+    if "oov" in s:
+        L += [""] + markdown_oov(s["oov"])
     return "\n".join(L) + "\n"
+
+
+def markdown_oov(o):
+    """The out-of-vocabulary section of the report."""
+    thr = o["threshold_final_over_floor"]
+    L = ["## Out of vocabulary", "",
+         "Physics outside the eight names; no name is right. A case passes when the tool says structure is "
+         f"left (`unexplained`) or what it named approximates it to the noise (final validation RMSE / "
+         f"noise floor <= {thr}); it fails when it claims a name with confidence (`unexplained` false) "
+         "above that, or names nothing and flags nothing. Strict (reported, not a threshold): no name beside "
+         "`unexplained`, unless the names fit to the noise. Intervals: Wilson 95 %.", "",
+         "| kind | passes | strict | named (cases) | outcomes |", "|---|---|---|---|---|"]
+    for k, v in o["per_kind"].items():
+        named = ", ".join(f"{n} {c}" for n, c in sorted(v["named"].items())) or "nothing"
+        outs = ", ".join(f"{n} {c}" for n, c in sorted(v["outcomes"].items()))
+        L.append(f"| {k} | {_fmt(v)} | {_fmt(v['strict'])} | {named} | {outs} |")
+    L += [f"| **all** | {_fmt(o['overall'])} | {_fmt(o['strict'])} | | "
+          + ", ".join(f"{n} {c}" for n, c in sorted(o["outcomes"].items())) + " |", "",
+          "| case | kind (form) | named | unexplained | final / floor | final / sigma | tool baseline / sigma | "
+          "target | verdict | outside vocabulary (depends on) |",
+          "|---|---|---|---|---|---|---|---|---|---|"]
+    for c in o["cases"]:
+        ov = "–" if c["outside_vocabulary"] is None else (", ".join(c["outside_vocabulary"]) or "(empty)")
+        L.append(f"| {c['id']} | {c['kind']} ({c['form']}) | {', '.join(c['named']) or 'nothing'} | "
+                 f"{'yes' if c['unexplained'] else 'no'} | {_num(c['final_over_floor'])} | "
+                 f"{_num(c['final_over_sigma'])} | {_num(c['baseline_over_sigma'])} | {_num(c['target'])} | "
+                 f"{'pass' if c['pass'] else 'FAIL'}: {c['outcome']} | {ov} |")
+    return L

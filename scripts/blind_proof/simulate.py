@@ -13,6 +13,12 @@ for continuous inputs, zero-order hold for a D/A staircase).  The sensor part
 
 Every effect has a scalar `size`; size 0 (or a missing effect) skips the stage,
 so the output is then bit-identical to the plain model.
+
+Out of vocabulary (generate.py --oov; physics none of the eight names describes):
+[dead-zone] acts on the amplifier's output (before input-lag); after the dynamics
+come [thermal] (self-heating expansion) -> [backlash] (play) -> [sensor-nonlinearity]
+-> [feed-through] (the drive coupled into the sensor); mains pick-up is the
+sensor's, added by generate.py like the drift.
 """
 from __future__ import annotations
 
@@ -200,6 +206,9 @@ def simulate_fine(cmd_fine, dtf, M, plain, effects, consts, zoh=False):
     eff = {k: e for k, e in effects.items() if e.get("size", 0.0) != 0.0}
     v = GAIN * np.asarray(cmd_fine, float)
     staircase = zoh
+    if "dead-zone" in eff:  # out of vocabulary: the amplifier's dead band about its mid level
+        v = dead_zone(v, consts["v_mid"], eff["dead-zone"]["size"] * consts["v_half"])
+    v_amp = v  # the amplifier's output (what heats the stack, what couples into the sensor)
     if "input-lag" in eff:
         e = eff["input-lag"]
         w = 1.0 / e["size"]  # size = time constant 1/omega (s)
@@ -268,6 +277,95 @@ def simulate_fine(cmd_fine, dtf, M, plain, effects, consts, zoh=False):
             B = [0.0, (1 - sh) * w1 * w1, 0.0, sh * w2 * w2]
             C = [1.0, 0.0, 1.0, 0.0]
         D = lti(A, B, C, 0.0, D, dtf, zoh=staircase)
+    if OOV_STAGES & eff.keys():
+        D = oov_stages(D, v_amp, dtf, eff, consts, zoh)
+    return D
+
+
+# ------------------------------------------------------------ out of vocabulary
+# Physics outside the eight names `optbench diagnose` knows (generate.py's --oov cases).
+# Each is skipped when absent or of size 0, so the cases of the eight are unchanged.
+OOV_STAGES = {"thermal", "backlash", "sensor-nonlinearity", "feed-through"}
+
+
+def dead_zone(v, v_mid, half_width):
+    """An amplifier with no output change while |v - v_mid| < half_width (crossover dead band)."""
+    x = v - v_mid
+    return v_mid + np.sign(x) * np.maximum(np.abs(x) - half_width, 0.0)
+
+
+@njit(cache=False)
+def play(x, r):
+    """Mechanical play (backlash) of half-width r: the follower moves only when the driver
+    pushes it at one edge of the gap; starts centred on x[0]."""
+    N = x.shape[0]
+    y = np.empty(N)
+    p = x[0]
+    for i in range(N):
+        if x[i] - r > p:
+            p = x[i] - r
+        elif x[i] + r < p:
+            p = x[i] + r
+        y[i] = p
+    return y
+
+
+def drive_power(v, dtf, form):
+    """Heating power (up to a constant) of the drive: `joule` v^2 (leakage / ohmic losses),
+    `dielectric` |v dv/dt| (the loss of charging the stack's capacitance, ~ C v dv/dt tan delta).
+    Even in v: the drive's sign does not matter."""
+    if form == "joule":
+        return v * v
+    p = np.empty_like(v)
+    p[1:] = np.abs(0.5 * (v[1:] + v[:-1]) * np.diff(v)) / dtf
+    p[0] = p[1] if v.shape[0] > 1 else 0.0
+    return p
+
+
+def thermal_term(v, dtf, e, p_ref):
+    """Unit thermal expansion: the drive's power low-passed (first order, tau_s), over the plain
+    training drive's mean power; starts at `start` times the record's mean power."""
+    p = drive_power(v, dtf, e["form"]) / p_ref
+    tau = e["tau_s"]
+    Ad = math.exp(-dtf / tau)
+    x0 = e.get("start", 0.0) * float(np.mean(p))
+    out = lti([[-1.0 / tau]], [1.0 / tau], [1.0], 0.0, p, dtf, zoh=True)
+    # lti starts at equilibrium with p[0]; shift to the drawn start state (the record's history)
+    n = np.arange(p.shape[0], dtype=float)
+    return out + (x0 - p[0]) * Ad ** n
+
+
+def high_pass(v, dtf, tau, zoh=False):
+    """First-order high-pass tau s / (1 + tau s) of v (from rest at v[0])."""
+    return v - lti([[-1.0 / tau]], [1.0 / tau], [1.0], 0.0, v, dtf, zoh=zoh)
+
+
+def sensor_nonlinearity(y, e, y_mid, stroke):
+    """The sensor's reading of displacement y (c = sign * size): `quadratic` y + c (y - y_mid)^2 / stroke
+    (a capacitive gauge's gap non-linearity), `periodic` y + c stroke sin(2 pi (y - y_mid) / period + phase)
+    (an interferometer's or encoder's cyclic error, period a fraction of the stroke)."""
+    c = e["size"] * e.get("sign", 1.0)
+    if e["form"] == "quadratic":
+        return y + c * (y - y_mid) ** 2 / stroke
+    period = stroke / e["periods_per_stroke"]
+    return y + c * stroke * np.sin(2 * np.pi * (y - y_mid) / period + e["phase"])
+
+
+def oov_stages(D, v_amp, dtf, eff, consts, zoh):
+    """Displacement-side and sensor-side stages outside the vocabulary, after the dynamics:
+    self-heating expansion -> play between actuator and sensor target -> sensor
+    non-linearity -> capacitive feed-through of the drive into the sensor."""
+    stroke = consts["stroke"]
+    if "thermal" in eff:
+        e = eff["thermal"]
+        D = D + e["size"] * e["sign"] * stroke * thermal_term(v_amp, dtf, e, consts["p_ref"])
+    if "backlash" in eff:
+        D = play(np.ascontiguousarray(D), 0.5 * eff["backlash"]["size"] * stroke)
+    if "sensor-nonlinearity" in eff:
+        D = sensor_nonlinearity(D, eff["sensor-nonlinearity"], consts["y_mid"], stroke)
+    if "feed-through" in eff:
+        e = eff["feed-through"]
+        D = D + e["size"] * e["sign"] * stroke * high_pass(v_amp, dtf, e["tau_s"], zoh) / consts["hp_ref"]
     return D
 
 

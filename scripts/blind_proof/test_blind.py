@@ -252,6 +252,289 @@ class TestGenerator(unittest.TestCase):
         self.assertEqual([c[1] for c in cl[46:]], [[], [], []])
 
 
+# ---------------------------------------------------------------- out of vocabulary
+OOV_CONSTS = {"vref": sim.GAIN * 4.65, "rate_norm": 1.0, "stroke": 0.5, "y_mid": 0.25,
+              "v_mid": sim.GAIN * 2.35, "v_half": sim.GAIN * 2.3, "p_ref": 1000.0, "hp_ref": 0.01}
+
+
+def _oov_effect(name, form, size, **kw):
+    e = gen.draw_oov(np.random.default_rng(0), name, 1000.0)
+    e.update(form=form, size=size, **kw)
+    return e
+
+
+class TestOovSimulator(unittest.TestCase):
+    fs, M = 1000.0, 8
+
+    def _sim(self, u, effects, hold="linear"):
+        cmd = sim.fine_command(np.asarray(u, float), self.M, hold)
+        return sim.simulate_record(cmd, 1 / self.fs, self.M, PLAIN, effects, OOV_CONSTS, hold)
+
+    def test_size_zero_is_plain_and_positive_size_is_not(self):
+        rng = np.random.default_rng(4)
+        st, fine, u = gen.signals.make_command(rng, "multisine", 2001, self.fs, self.M, "unipolar")
+        for hold in ["zoh", "linear", "bandlimited"]:
+            cmd = sim.fine_command(u, self.M, hold, fine)
+            plain = sim.simulate_record(cmd, 1 / self.fs, self.M, PLAIN, {}, OOV_CONSTS, hold)
+            for name in gen.OOV_KINDS:
+                if name == "mains":  # the sensor's, added by generate.py (TestOovGenerator)
+                    continue
+                for form in gen.OOV_FORMS[name]:
+                    e = _oov_effect(name, form, 0.0)
+                    y = sim.simulate_record(cmd, 1 / self.fs, self.M, PLAIN, {name: e}, OOV_CONSTS, hold)
+                    self.assertTrue(np.array_equal(y, plain), f"{name}/{form}/{hold}")
+                    e["size"] = e["bounds"][0] * 100
+                    y2 = sim.simulate_record(cmd, 1 / self.fs, self.M, PLAIN, {name: e}, OOV_CONSTS, hold)
+                    self.assertFalse(np.array_equal(y2, plain), f"{name}/{form}/{hold} size > 0")
+
+    def test_play_holds_inside_the_gap(self):
+        r = 0.1
+        x = np.r_[np.linspace(0.0, 1.0, 101), np.linspace(1.0, 0.85, 16), np.linspace(0.85, 1.2, 36)]
+        y = sim.play(x, r)
+        np.testing.assert_allclose(y[:101], np.maximum(x[:101] - r, 0.0), atol=1e-15)  # dragged at the back edge
+        self.assertTrue(np.all(y[100:133] == y[100]))  # down 0.15 < 2r, back up to 1.0 (x[132]): no motion
+        np.testing.assert_allclose(y[-1], 1.2 - r, atol=1e-15)  # pushed again once past the old edge
+
+    def test_backlash_output_constant_while_the_drive_reverses_inside_the_gap(self):
+        u = np.r_[np.linspace(0.5, 4.0, 400), np.linspace(4.0, 3.9, 50)[1:], np.linspace(3.9, 4.0, 50)[1:]]
+        plain = self._sim(u, {})
+        rev = plain[399:]
+        swing = np.ptp(rev)  # the actuator's motion during the reversal
+        gap = 1.5 * swing
+        y = self._sim(u, {"backlash": _oov_effect("backlash", "play", gap / OOV_CONSTS["stroke"])})
+        self.assertGreater(swing, 1e-3)
+        # down by less than the gap and back: the target stays until the actuator passes its turning point
+        inside = rev <= rev[0]
+        self.assertGreater(inside.sum(), 60)
+        self.assertAlmostEqual(np.ptp(y[399:][inside]), 0.0, places=14)
+        # before and after: dragged behind the actuator by half the gap
+        np.testing.assert_allclose(y[100:399], plain[100:399] - gap / 2, atol=1e-12)
+        np.testing.assert_allclose(y[399:][~inside], rev[~inside] - gap / 2, atol=1e-12)
+
+    def test_dead_zone_no_response_inside_and_shifted_drive_outside(self):
+        mid = 2.35
+        e = _oov_effect("dead-zone", "crossover", 0.1)  # half-width 0.23 command volts
+        hw = 0.1 * 2.3
+        u_in = mid + 0.9 * hw * np.sin(np.linspace(0, 6 * np.pi, 600))
+        y_in = self._sim(u_in, {"dead-zone": e})
+        self.assertAlmostEqual(np.ptp(y_in), 0.0, places=14)  # zero response below the dead band
+        self.assertFalse(np.ptp(self._sim(u_in, {})) < 1e-6)
+        u_out = np.linspace(mid + 1.5 * hw, 4.5, 500)
+        np.testing.assert_allclose(self._sim(u_out, {"dead-zone": e}), self._sim(u_out - hw, {}), atol=1e-12)
+
+    def test_thermal_grows_with_power_independent_of_sign(self):
+        dtf = 1e-3
+        v = 30.0 * np.sin(np.linspace(0, 40 * np.pi, 20001))
+        for form in ["joule", "dielectric"]:
+            e = _oov_effect("thermal", form, 1.0, tau_s=3.0, start=0.0)
+            a = sim.thermal_term(v, dtf, e, 100.0)
+            np.testing.assert_array_equal(a, sim.thermal_term(-v, dtf, e, 100.0))  # even in the drive
+            b = sim.thermal_term(2 * v, dtf, e, 100.0)  # twice the drive: 4x the power, 4x the term
+            np.testing.assert_allclose(b, 4 * a, rtol=1e-12, atol=1e-12)
+            self.assertTrue(np.all(np.diff(a[::500]) > 0))  # heating from cold under a steady drive
+        # constant power: the first-order step response exactly
+        e = _oov_effect("thermal", "joule", 1.0, tau_s=2.0, start=0.0)
+        t = np.arange(5001) * dtf
+        np.testing.assert_allclose(sim.thermal_term(np.full(5001, 10.0), dtf, e, 50.0),
+                                   2.0 * (1 - np.exp(-t / 2.0)), atol=1e-12)
+        e["start"] = 1.0  # warm start: already at the record's mean power
+        np.testing.assert_allclose(sim.thermal_term(np.full(5001, 10.0), dtf, e, 50.0), 2.0, atol=1e-12)
+        # in the simulator: a bipolar drive and its mirror leave the same thermal term
+        u = 2.0 * np.sin(np.linspace(0, 8 * np.pi, 3001))
+        e = _oov_effect("thermal", "dielectric", 0.05, tau_s=2.0, start=0.0, sign=1.0)
+        c = dict(OOV_CONSTS, v_mid=0.0)
+        cmd = sim.fine_command(u, self.M, "linear")
+        cmd_m = sim.fine_command(-u, self.M, "linear")
+        run = lambda cm, ef: sim.simulate_record(cm, 1 / self.fs, self.M, PLAIN, ef, c, "linear")  # noqa: E731
+        np.testing.assert_allclose(run(cmd, {"thermal": e}) - run(cmd, {}), run(cmd_m, {"thermal": e}) - run(cmd_m, {}),
+                                   atol=1e-13)
+
+    def test_sensor_nonlinearity_exact_formula(self):
+        u = np.linspace(0.2, 4.5, 800)
+        plain = self._sim(u, {})
+        S, ym = OOV_CONSTS["stroke"], OOV_CONSTS["y_mid"]
+        e = _oov_effect("sensor-nonlinearity", "quadratic", 0.07, sign=-1.0)
+        np.testing.assert_allclose(self._sim(u, {"sensor-nonlinearity": e}), plain - 0.07 * (plain - ym) ** 2 / S,
+                                   rtol=0, atol=1e-14)
+        e = _oov_effect("sensor-nonlinearity", "periodic", 0.002, sign=1.0, periods_per_stroke=7.0, phase=0.3)
+        np.testing.assert_allclose(self._sim(u, {"sensor-nonlinearity": e}),
+                                   plain + 0.002 * S * np.sin(2 * np.pi * (plain - ym) * 7.0 / S + 0.3), rtol=0, atol=1e-14)
+
+    def test_feed_through_follows_the_drive_rate(self):
+        tau = 2e-4
+        e = _oov_effect("feed-through", "capacitive", 0.01, tau_s=tau, sign=1.0)
+        k = 0.01 * OOV_CONSTS["stroke"] / OOV_CONSTS["hp_ref"]
+        u = np.r_[np.full(200, 1.0), np.linspace(1.0, 3.0, 801)[1:], np.full(300, 3.0)]
+        d = self._sim(u, {"feed-through": e}) - self._sim(u, {})
+        np.testing.assert_allclose(d[:200], 0.0, atol=1e-15)  # a constant drive couples nothing
+        rate = sim.GAIN * 2.0 / (800 / self.fs)  # drive V/s on the ramp
+        np.testing.assert_allclose(d[300:999], k * tau * rate, rtol=1e-9)  # settled: k tau dv/dt
+        self.assertLess(abs(d[-1]), 1e-12 * k)  # decays after the ramp
+
+
+class TestOovGenerator(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.built = {k: gen.build_case(5, 100 + i, [k], ci=True) for i, k in enumerate(gen.OOV_KINDS)}
+
+    def test_truth_marks_oov(self):
+        for k, (truth, _) in self.built.items():
+            self.assertEqual(truth["oov"], k)
+            self.assertEqual(truth["kind"], "oov")
+            self.assertEqual(truth["effects"], [])
+            self.assertIn(truth["oov_form"], gen.OOV_FORMS[k])
+            self.assertEqual(truth["forms"], {k: truth["oov_form"]})
+            self.assertIn("size", truth["effect_settings"][k])
+
+    def test_calibration_hits_target(self):
+        for k, (truth, _) in self.built.items():
+            self.assertTrue(1.5 <= truth["target_ratio"] <= 4.0)
+            self.assertTrue(truth["target_reached"], k)
+            self.assertLess(abs(truth["achieved_ratio_linearised"] / truth["target_ratio"] - 1), 0.05, k)
+            self.assertTrue(truth["train_signature_sigma"] >= gen.MIN_TRAIN_SIGNATURE
+                            or truth["attempts"] == gen.MAX_ATTEMPTS, k)
+
+    def test_calibration_independent_recheck(self):
+        # The linearised ratio recomputed from the written truth with a fresh draw (mains: the sensor's term).
+        for k in ["mains", "thermal"]:
+            truth, _ = self.built[k]
+            idx = 100 + gen.OOV_KINDS.index(k)
+            case = gen.draw_case(5, idx, [k], ci=True, attempt=truth["attempts"] - 1)
+            case["consts"] = truth["consts"]
+            case["effects"][k]["size"] = truth["sizes"][k]
+            lin = gen.Linearised(case)
+            rem, _, _ = lin.remainder(*gen.sim_effects(case, case["effects"]))
+            sig = truth["noise_sigma_mm"]
+            self.assertAlmostEqual(math.sqrt(sig ** 2 + rem ** 2) / sig, truth["achieved_ratio_linearised"], places=6)
+
+    def test_mains_independent_of_the_input(self):
+        truth, _ = self.built["mains"]
+        idx = 100 + gen.OOV_KINDS.index("mains")
+        case = gen.draw_case(5, idx, ["mains"], ci=True, attempt=truth["attempts"] - 1)
+        case["consts"] = truth["consts"]
+        e = dict(case["effects"]["mains"], size=truth["sizes"]["mains"])
+        d = [a - b for a, b in zip(gen.sim_effects(case, {"mains": e}), gen.sim_effects(case, {}))]
+        for r, di, ph in zip(case["records"], d, truth["effect_settings"]["mains"]["phases_rad"]):
+            t = np.arange(r["N"]) / case["fs"]
+            w = 2 * np.pi * e["freq_hz"]
+            want = e["size"] * truth["stroke_mm"] * (np.sin(w * t + ph[0]) + e["third_harmonic"] * np.sin(3 * w * t + ph[1]))
+            np.testing.assert_allclose(di, want, rtol=1e-9, atol=1e-12)
+        self.assertTrue(49.8 <= e["freq_hz"] <= 60.2)
+
+    def test_case_list_appends_oov_after_the_rest(self):
+        base = gen.case_list(16, 5, 3, 9)
+        more = gen.case_list(16, 5, 3, 9, oov=8)
+        self.assertEqual(more[:len(base)], base)
+        self.assertEqual([c[1] for c in more[len(base):]], [[k] for k in gen.OOV_KINDS] + [gen.OOV_KINDS[:1], gen.OOV_KINDS[1:2]])
+        self.assertEqual([c[0] for c in more], list(range(len(more))))
+
+
+# Files of cases generated before the out-of-vocabulary part existed (commit 6da7d63, master
+# seed 4, --ci): sha256 (first 16 hex digits) of train.csv, validate.csv and truth.json less
+# its timing (json.dumps, sort_keys). The eight effects' simulations and draws are unchanged.
+PINNED = {
+    2: ("saturation", "9aace5a1ef860015", "e5406eaa23c3ae91", "380d55cbe773cf8d"),
+    4: ("rate-dependence", "b3e2c11fc98326ce", "ef720e83086942a2", "9f95b460aff18f16"),
+    6: ("dynamics", "5345af002d71153b", "9784cdb86b3ff58c", "87a182af42c4a773"),
+    8: ("delay+rate-dependence", "504b333c82404352", "c2470325e8f59055", "b7f2b3b4047f78cb"),
+    11: ("none", "1d621623f8cd35ea", "90b34d8335448da5", "2f4a284b0eebef08"),
+}
+
+
+class TestExistingCasesUnchanged(unittest.TestCase):
+    def test_pinned_hashes(self):
+        import hashlib
+        h = lambda b: hashlib.sha256(b).hexdigest()[:16]  # noqa: E731
+        with tempfile.TemporaryDirectory() as d:
+            for idx, (label, *want) in PINNED.items():
+                effects = [] if label == "none" else label.split("+")
+                # the --ci list, and the same list with OOV cases appended, give this case these effects
+                self.assertEqual(dict(gen.case_list(8, 2, 2, 4))[idx], effects)
+                self.assertEqual(dict(gen.case_list(8, 2, 2, 4, oov=5))[idx], effects)
+                truth = gen.write_case(d, 4, idx, effects, True)
+                c = os.path.join(d, f"case-{idx:04d}")
+                got = [h(open(os.path.join(c, f), "rb").read()) for f in ["train.csv", "validate.csv"]]
+                truth.pop("generate_s")
+                got.append(h(json.dumps(truth, sort_keys=True).encode()))
+                self.assertEqual(got, want, f"case {idx} ({label})")
+
+
+def _diag(named, unexplained, final, floor=1.0, **kw):
+    return {"left_out": named, "unexplained": unexplained, "final": {"validate_rmse": final},
+            "baseline": {"validate_rmse": 3.0}, "noise_floor": floor, **kw}
+
+
+class TestOovScore(unittest.TestCase):
+    def test_verdicts(self):
+        v = score.oov_verdict
+        # (a) the tool says structure is left: pass, whatever it named
+        self.assertEqual(v(_diag([], True, 2.5))["outcome"], "unexplained")
+        self.assertTrue(v(_diag([], True, 2.5))["pass"])
+        self.assertTrue(v(_diag(["creep"], True, 2.5))["pass"])
+        self.assertTrue(v(_diag([], True, 2.5))["strict"])
+        self.assertFalse(v(_diag(["creep"], True, 2.5))["strict"])  # a name beside the flag: not strict
+        self.assertTrue(v(_diag(["creep"], True, 1.1))["strict"])
+        # (b) the names (or the plain model) fit to the noise: pass
+        self.assertTrue(v(_diag(["saturation"], False, 1.15))["pass"])
+        self.assertEqual(v(_diag(["saturation"], False, 1.1))["outcome"], "approximated by the names")
+        self.assertTrue(v(_diag([], False, 1.05))["pass"])
+        self.assertAlmostEqual(v(_diag([], False, 2.2, floor=2.0))["final_over_floor"], 1.1)
+        # a name claimed with confidence above 1.15x the floor, or nothing named and nothing flagged: fail
+        self.assertFalse(v(_diag(["creep"], False, 1.2))["pass"])
+        self.assertEqual(v(_diag(["creep"], False, 1.2))["outcome"], "confident wrong name")
+        self.assertFalse(v(_diag([], False, 1.5))["pass"])
+        self.assertEqual(v(_diag([], False, 1.5))["outcome"], "silent")
+        # the future field is reported, not scored
+        self.assertIsNone(v(_diag([], True, 2.0))["outside_vocabulary"])
+        d = _diag([], True, 2.0, outside_vocabulary={"depends_on": ["drive power", "time"]})
+        self.assertEqual(v(d)["outside_vocabulary"], ["drive power", "time"])
+
+    def test_score_keeps_oov_apart(self):
+        tr = lambda e, oov=None: {"effects": e, "forms": {}, "noise_sigma_mm": 0.5, "target_ratio": 2.0,  # noqa: E731
+                                  "achieved_ratio_linearised": 2.0, **({"oov": oov, "oov_form": "f"} if oov else {})}
+        res = [
+            {"id": "n", "truth": tr([]), "diagnosis": _diag([], False, 1.0), "wall_s": 1},
+            {"id": "o1", "truth": tr([], "backlash"), "diagnosis": _diag(["asymmetry"], False, 2.0), "wall_s": 9},
+            {"id": "o2", "truth": tr([], "backlash"), "diagnosis": _diag([], True, 2.0), "wall_s": 1},
+            {"id": "o3", "truth": tr([], "mains"), "diagnosis": _diag(["dynamics (one mode)"], False, 1.1), "wall_s": 1},
+        ]
+        s = score.score(res)
+        self.assertEqual(s["nulls_false_alarm"]["n"], 1)  # OOV cases are not nulls
+        self.assertEqual(s["overall"]["n"], 1)
+        self.assertEqual([f["id"] for f in s["failed"]], [])
+        self.assertEqual(s["wall_s"]["worst_case"], "o1")
+        o = s["oov"]
+        self.assertEqual((o["overall"]["k"], o["overall"]["n"]), (2, 3))
+        self.assertEqual((o["per_kind"]["backlash"]["k"], o["per_kind"]["backlash"]["n"]), (1, 2))
+        self.assertEqual(o["per_kind"]["mains"]["named"], {"dynamics": 1})
+        self.assertEqual(o["outcomes"], {"confident wrong name": 1, "unexplained": 1, "approximated by the names": 1})
+        self.assertEqual(o["strict"]["k"], 2)
+        md = score.markdown(s)
+        self.assertIn("## Out of vocabulary", md)
+        self.assertIn("| o1 | backlash (f) | asymmetry | no | 2.00 | 4.00 |", md)
+        self.assertIn("FAIL: confident wrong name", md)
+        self.assertNotIn("## Out of vocabulary", score.markdown(score.score(res[:1])))
+
+    def test_run_min_oov(self):
+        with tempfile.TemporaryDirectory() as d:
+            for i, (named, unexpl, fin) in enumerate([(["creep"], False, 2.0), ([], True, 2.0)]):
+                c = os.path.join(d, f"case-{i:04d}")
+                os.makedirs(os.path.join(c, "diagnosis"))
+                json.dump({"effects": [], "forms": {"thermal": "joule"}, "oov": "thermal", "oov_form": "joule",
+                           "noise_sigma_mm": 1.0, "target_ratio": 2.0, "achieved_ratio_linearised": 2.0},
+                          open(os.path.join(c, "truth.json"), "w"))
+                json.dump(_diag(named, unexpl, fin), open(os.path.join(c, "diagnosis", "diagnosis.json"), "w"))
+            run = lambda *x: subprocess.run([sys.executable, os.path.join(HERE, "run.py"), "--cases", d,  # noqa: E731
+                                             "--score-only", "--json", os.path.join(d, "r.json"), *x],
+                                            capture_output=True, text=True)
+            p = run("--min-oov", "0.5")
+            self.assertEqual(p.returncode, 0, p.stderr)
+            self.assertEqual(json.load(open(os.path.join(d, "r.json")))["oov"]["overall"]["k"], 1)
+            p = run("--min-oov", "0.75")
+            self.assertNotEqual(p.returncode, 0)
+            self.assertIn("out-of-vocabulary passes 1/2 below 75%", p.stderr)
+
+
 def _tree(root):
     out = {}
     for dp, _, fns in os.walk(root):
@@ -292,6 +575,22 @@ class TestGenerateCli(unittest.TestCase):
                 hdr = open(os.path.join(d, "a", c, "train.csv")).readline().strip()
                 self.assertEqual(hdr, "t,u,y")
             self.assertEqual(json.load(open(os.path.join(d, "a", "case-0010", "truth.json")))["effects"], [])
+
+    def test_oov_presets_number_after_the_rest(self):
+        with tempfile.TemporaryDirectory() as d:
+            env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
+            for args, idx in [(["--ci", "--ci-oov", "--only", "12"], 12), (["--ci-oov", "--only", "0"], 0),
+                              (["--singles", "0", "--oov", "3", "--seconds", "5", "6", "--only", "1"], 1)]:
+                out = os.path.join(d, str(idx))
+                p = subprocess.run([sys.executable, os.path.join(HERE, "generate.py"), "--out", out, "--master-seed", "2",
+                                    *args], check=True, env=env, capture_output=True, text=True)
+                self.assertIn(f"case-{idx:04d} oov:", p.stdout)
+                t = json.load(open(os.path.join(out, f"case-{idx:04d}", "truth.json")))
+                self.assertEqual(t["oov"], gen.OOV_KINDS[1 if idx == 1 else 0])
+                if idx == 1:
+                    self.assertTrue(all(5.0 <= r["seconds"] <= 6.0 for r in t["records"]))
+                else:
+                    self.assertLessEqual(t["fs_hz"], 2000.0)  # the --ci record settings
 
 
 if __name__ == "__main__":
