@@ -8,7 +8,7 @@
 //! proposed, as a signal spec a lab can play. Without the refit a drift would look
 //! separated from creep on any record, though on each new record it would be refitted.
 
-use super::from_rest;
+use super::evaluate::from_rest;
 use super::refit::{self, Fitted};
 use crate::data::signal::Signal;
 #[cfg(test)]
@@ -299,7 +299,8 @@ impl NextExperiment {
 mod tests {
     use super::*;
     use crate::data::recording::Recording;
-    use crate::diagnose::{Options, bic, diagnose};
+    use crate::diagnose::evaluate::bic;
+    use crate::diagnose::{Options, diagnose};
     use crate::physics::structure::{Context, Effect, Placement, Structure};
     use crate::physics::twin::{self, TwinConfig};
 

@@ -6,8 +6,8 @@
 //! [`TIE_SHARE`] too or the paired block bootstrap cannot tell the two falls apart. Why they tie is measured, not
 //! assumed: how closely their corrections to the parent's output agree.
 
+use super::evaluate::{Data, Evaluated, gain_band, validation_residual};
 use super::residual::correlation;
-use super::{Data, Evaluated, gain_band, validation_residual};
 use crate::render::table::sig;
 use serde::Serialize;
 
