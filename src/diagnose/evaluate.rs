@@ -4,7 +4,7 @@
 
 use super::refit::{self, Budget, Fitted};
 use super::residual::{self, TestResult};
-use super::{HoldTrial, ModelSummary, Options, TestSet, plausible};
+use super::{HoldTrial, ModelSummary, Options, TestSet, forecast, plausible};
 use crate::base::TrialSeed;
 use crate::base::standard_normal;
 use crate::physics::structure::Hold;
@@ -12,6 +12,7 @@ use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
+use std::ops::Range;
 use std::sync::Arc;
 
 /// Training and validation data in the form the fits use.
@@ -75,31 +76,102 @@ impl Data {
         (f, theta, used, out, coef)
     }
 
-    /// `f`'s output on the validation input (recorded output `yv`, used only for the
-    /// record's own initial state); a periodic record is simulated over two periods and the
-    /// second returned, so no start-up transient is scored. Also the evaluations used and
-    /// the coefficients with the record's own ones (offset, drift, creep states) refitted,
-    /// and how many values belong to the record(s) (refitted there).
+    /// `f`'s output on the validation record(s) with the records' own parts fitted on all
+    /// of their samples (a periodic record over two periods, the second returned): the
+    /// model's own reading of the records, which the bootstrap adds noise to. Not a
+    /// prediction, so it never judges.
+    pub(super) fn validation_simulated(&self, f: &Fitted, seed: u64) -> Vec<f64> {
+        let twice = |v: &[f64]| -> Vec<f64> { v.iter().chain(v).copied().collect() };
+        let (u, y) = if self.periodic {
+            (twice(&self.uv), twice(&self.yv))
+        } else {
+            (self.uv.clone(), self.yv.clone())
+        };
+        let (_, _, _, out, _) = self.validation_fit(f, &u, &y, seed);
+        out[out.len() - self.uv.len()..].to_vec()
+    }
+
+    /// The validation records as (samples, interval), in the order concatenated in `uv`.
+    pub(super) fn parts(&self) -> Vec<(usize, f64)> {
+        self.validation_parts
+            .clone()
+            .unwrap_or_else(|| vec![(self.uv.len(), self.dv)])
+    }
+
+    /// The rows of the concatenated validation records that judge ([`forecast::scored`] of
+    /// each): no parameter was fitted on them.
+    pub(super) fn scored_rows(&self) -> Vec<Range<usize>> {
+        let mut at = 0;
+        self.parts()
+            .iter()
+            .map(|&(n, _)| {
+                let r = forecast::scored(n);
+                let rows = at + r.start..at + r.end;
+                at += n;
+                rows
+            })
+            .collect()
+    }
+
+    /// The scored rows ([`Self::scored_rows`]) of a vector over the validation records.
+    pub(super) fn scored(&self, v: &[f64]) -> Vec<f64> {
+        self.scored_rows()
+            .into_iter()
+            .flat_map(|r| v[r].iter().copied())
+            .collect()
+    }
+
+    /// How each validation record judges (`diagnosis.json`): its samples, those scored and
+    /// how many of `f`'s parameters are fitted on its own samples before them.
+    pub(super) fn judging(&self, f: &Fitted) -> Vec<forecast::Judging> {
+        self.parts()
+            .iter()
+            .map(|&(n, dt)| forecast::Judging {
+                samples: n,
+                scored: forecast::scored(n).len(),
+                fitted_on_record: forecast::fitted_on_record(
+                    &f.at_interval(dt),
+                    !refit::same_interval(dt, self.scope.dt),
+                ),
+                fitted_on_scored: 0,
+            })
+            .collect()
+    }
+
+    /// `f` predicting the validation record(s) ([`forecast::forecast_record`]: each
+    /// record's own parts fitted on the samples before each forecast origin, a periodic
+    /// record's over two periods and the second returned, so no start-up transient is
+    /// scored); recorded output `yv`. Also the output with the records' own parts fitted on
+    /// all their samples (for the residual tests), the evaluations used, the first record's
+    /// coefficients (its own ones from its last fit) and how many parameters were fitted
+    /// on the records' own samples.
     fn validation_output(
         &self,
         f: &Fitted,
         yv: &[f64],
         seed: u64,
-    ) -> (Vec<f64>, u64, Vec<f64>, usize) {
-        let twice = |v: &[f64]| -> Vec<f64> { v.iter().chain(v).copied().collect() };
-        let (u, y) = if self.periodic {
-            (twice(&self.uv), twice(yv))
-        } else {
-            (self.uv.clone(), yv.to_vec())
-        };
-        let (f, _, used, out, coef) = self.validation_fit(f, &u, &y, seed);
-        let own = f.structure.record_coefs().len()
-            + f.structure
-                .specs()
-                .iter()
-                .filter(|s| s.name.starts_with("g0_frac"))
-                .count();
-        (out[out.len() - self.uv.len()..].to_vec(), used, coef, own)
+    ) -> (Vec<f64>, Vec<f64>, u64, Vec<f64>, usize) {
+        let mut out = Vec::with_capacity(yv.len());
+        let mut fitted_out = Vec::with_capacity(yv.len());
+        let (mut used, mut fitted, mut coef) = (0, 0, None);
+        let mut at = 0;
+        for (n, dt) in self.parts() {
+            let r = forecast::forecast_record(
+                &f.at_interval(dt),
+                &self.uv[at..at + n],
+                &yv[at..at + n],
+                seed,
+                !refit::same_interval(dt, self.scope.dt),
+                self.periodic,
+            );
+            out.extend(r.out);
+            fitted_out.extend(r.fitted_out);
+            used += r.used;
+            fitted += r.fitted;
+            coef.get_or_insert(r.coef);
+            at += n;
+        }
+        (out, fitted_out, used, coef.unwrap_or_default(), fitted)
     }
 }
 
@@ -111,10 +183,15 @@ pub(super) struct Evaluated {
     pub(super) out_v: Vec<f64>,
     /// Coefficients on the validation record (its own offset, drift and creep states).
     pub(super) coef_v: Vec<f64>,
+    /// The validation residual on the scored rows ([`Data::scored_rows`]): predicted, every
+    /// parameter fitted on other samples.
+    pub(super) ev: Vec<f64>,
+    /// Parameters fitted on the validation records' own samples (before the scored ones).
+    pub(super) fitted_v: usize,
     pub(super) validate_rmse: f64,
-    /// Evidence on the validation record: `N ln(SSE/N) + k ln N`, `k` the coefficients
-    /// refitted on it (its own offset, drift, initial states), so a per-record effect pays
-    /// for what it fits there and an actuator effect must predict.
+    /// Evidence on the validation record: `N ln(SSE/N)` over the scored samples. Nothing
+    /// is charged for parameters because none was fitted on them: a per-record part must
+    /// forecast like an actuator effect must predict.
     pub(super) validate_ic: f64,
     pub(super) tests: Vec<TestResult>,
     pub(super) score: f64,
@@ -122,27 +199,35 @@ pub(super) struct Evaluated {
 
 pub(super) fn evaluate(mut f: Fitted, d: &Data, opts: &Options) -> Evaluated {
     let (out_t, _) = f.structure.simulate(&f.theta, &f.linear.coef, &d.ut);
-    let (out_v, used, coef_v, refitted) = d.validation_output(&f, &d.yv, opts.seed);
+    let (out_v, fitted_v_out, used, coef_v, fitted_v) = d.validation_output(&f, &d.yv, opts.seed);
     f.evaluations += used;
-    let ev: Vec<f64> = d.yv.iter().zip(&out_v).map(|(a, b)| a - b).collect();
-    let tests = residual::battery(&d.uv, &ev, opts.lags, opts.alpha);
+    let full: Vec<f64> = d.yv.iter().zip(&out_v).map(|(a, b)| a - b).collect();
+    let ev = d.scored(&full);
+    // The residual tests describe what structure is left, on the record's own reading
+    // (its own parts fitted on all of it: a forecast's small jumps at the origins would be
+    // structure of the judging, not of the physics). They can only hold a candidate back
+    // (its score must fall); what admits it is the prediction.
+    let described: Vec<f64> = d.yv.iter().zip(&fitted_v_out).map(|(a, b)| a - b).collect();
+    let tests = residual::battery(&d.uv, &described, opts.lags, opts.alpha);
     let n = ev.len().max(1) as f64;
     let sse = ev.iter().map(|e| e * e).sum::<f64>().max(1e-300);
     Evaluated {
         validate_rmse: residual::rms(&ev),
-        validate_ic: n * (sse / n).ln() + refitted as f64 * n.ln(),
+        validate_ic: n * (sse / n).ln(),
         score: residual::score(&tests),
         tests,
         fitted: f,
         out_t,
         out_v,
         coef_v,
+        ev,
+        fitted_v,
     }
 }
 
-/// The residual of an evaluated model on the validation record `yv`.
-pub(super) fn validation_residual(yv: &[f64], e: &Evaluated) -> Vec<f64> {
-    yv.iter().zip(&e.out_v).map(|(y, m)| y - m).collect()
+/// The validation residual of an evaluated model on the rows that judge.
+pub(super) fn validation_residual(e: &Evaluated) -> &[f64] {
+    &e.ev
 }
 
 /// The training record's residual of a fitted model.
@@ -226,13 +311,13 @@ fn boot_p(score: f64, boot: &[f64]) -> f64 {
 }
 
 pub(super) fn summary(e: &Evaluated, d: &Data, boot: &[f64], seed: u64) -> ModelSummary {
-    let ev: Vec<f64> = d.yv.iter().zip(&e.out_v).map(|(a, b)| a - b).collect();
+    let ev = &e.ev;
     let label = e.fitted.structure.label();
     ModelSummary {
         model: label.clone(),
         train_rmse: e.fitted.rmse(d.ut.len()),
         validate_rmse: e.validate_rmse,
-        validate_band: rmse_band(&ev, seed, &label),
+        validate_band: rmse_band(ev, seed, &label),
         bic: bic(&e.fitted, d.ut.len()),
         params: named(&e.fitted),
         tests: e.tests.clone(),
@@ -253,7 +338,7 @@ pub(super) fn bootstrap_scores(
 ) -> (Vec<f64>, u64) {
     let st = &base.structure;
     let (mt, _) = st.simulate(&base.theta, &base.linear.coef, &d.ut);
-    let (mv, _, _, _) = d.validation_output(base, &d.yv, opts.seed);
+    let mv = d.validation_simulated(base, opts.seed);
     let runs: Vec<(f64, u64)> = (0..opts.bootstrap)
         .into_par_iter()
         .with_max_len(1)
@@ -284,7 +369,7 @@ pub(super) fn bootstrap_scores(
                 },
                 opts.seed ^ (0xb00 + b as u64),
             );
-            let (ov, used, _, _) = d.validation_output(&refit, &yv, opts.seed);
+            let (_, ov, used, _, _) = d.validation_output(&refit, &yv, opts.seed);
             let ev: Vec<f64> = yv.iter().zip(&ov).map(|(a, b)| a - b).collect();
             let score = residual::score(&residual::battery(&d.uv, &ev, opts.lags, opts.alpha));
             (score, refit.evaluations + used)

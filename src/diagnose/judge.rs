@@ -5,7 +5,7 @@
 use super::evaluate::{Data, Evaluated, bic, gain_band, named, rmse_band, validation_residual};
 use super::propose::Proposal;
 use super::refit::Fitted;
-use super::{Options, suggest, tie};
+use super::{Options, plausible, suggest, tie};
 use crate::physics::structure::Structure;
 use rustfft::num_complex::Complex64;
 
@@ -18,7 +18,7 @@ pub(super) struct Verdict {
 
 /// What a gate needs besides the two models: the parent's validation band (reported), the
 /// BIC margin, the share of the noise variance to explain, the training length, the noise
-/// floor, the unit, the validation record and the seed of the paired bootstrap.
+/// floor, the unit and the seed of the paired bootstrap.
 #[derive(Clone, Copy)]
 pub(super) struct Gate<'a> {
     pub(super) band: [f64; 2],
@@ -27,7 +27,6 @@ pub(super) struct Gate<'a> {
     pub(super) nt: usize,
     pub(super) noise: f64,
     pub(super) unit: &'a str,
-    pub(super) yv: &'a [f64],
     pub(super) seed: u64,
 }
 
@@ -44,13 +43,12 @@ pub(super) fn judge(c: &Evaluated, parent: &Evaluated, g: &Gate) -> Verdict {
         nt,
         noise,
         unit,
-        yv,
         seed,
     } = *g;
     let delta = bic(&c.fitted, nt) - bic(&parent.fitted, nt);
     let bic_ok = delta < -margin;
     let (gain, explained, band_ok) =
-        validation_gain(parent, c, yv, seed, min_explained * noise * noise);
+        validation_gain(parent, c, seed, min_explained * noise * noise);
     // The battery's score must fall, unless the candidate removes more than the noise
     // variance itself from the validation error: one of two concealed effects, fitted
     // alone, can reshape the residual (a mode without the rate-dependence beside it) so a
@@ -90,14 +88,13 @@ pub(super) fn judge(c: &Evaluated, parent: &Evaluated, g: &Gate) -> Verdict {
 pub(super) fn validation_gain(
     worse: &Evaluated,
     better: &Evaluated,
-    yv: &[f64],
     seed: u64,
     needed: f64,
 ) -> ([f64; 2], f64, bool) {
     let explained = worse.validate_rmse.powi(2) - better.validate_rmse.powi(2);
     let gain = gain_band(
-        &validation_residual(yv, worse),
-        &validation_residual(yv, better),
+        validation_residual(worse),
+        validation_residual(better),
         seed,
     );
     (gain, explained, gain[0] > 0.0 && explained >= needed)
@@ -251,7 +248,7 @@ pub(super) fn beside_alone(
 ) -> Verdict {
     let gate = Gate {
         band: rmse_band(
-            &validation_residual(&d.yv, alone),
+            validation_residual(alone),
             opts.seed,
             &alone.fitted.structure.label(),
         ),
@@ -260,7 +257,6 @@ pub(super) fn beside_alone(
         nt: d.ut.len(),
         noise,
         unit,
-        yv: &d.yv,
         seed: opts.seed,
     };
     judge(pair, alone, &gate)
@@ -309,4 +305,24 @@ pub(super) fn round_ties(
             Some(t)
         })
         .collect()
+}
+
+/// Plausible or not named: a candidate that passes the gate although its own parameters
+/// are implausible or pressed against a bound ([`plausible::refusal`]) is refused, and its
+/// evidence says why; the search names the best plausible candidate instead (or nothing).
+/// A form at its bound wanted more than it allows, so it stood in for something else (P-885:
+/// creep carrying 96 % of the response, a lag standing in).
+pub(super) fn refuse_implausible(mut v: Verdict, p: &Proposal, c: &Evaluated, d: &Data) -> Verdict {
+    if !v.passed {
+        return v;
+    }
+    if let Some(why) =
+        plausible::refusal(&plausible::check_effects(&c.fitted, &d.scope, &p.effects()))
+    {
+        v.passed = false;
+        v.evidence.push_str(&format!(
+            "; refused, the gate passed but its own parameters are not plausible: {why}"
+        ));
+    }
+    v
 }

@@ -29,6 +29,7 @@
 //!    dropped (backward step) and the search goes on.
 
 pub mod coupling;
+pub mod forecast;
 pub mod plausible;
 pub mod proof;
 pub mod recordings;
@@ -36,8 +37,10 @@ pub mod refit;
 pub mod report;
 pub mod residual;
 pub mod saved;
+pub mod steps;
 pub mod suggest;
 pub mod tie;
+pub mod unexplained;
 
 mod evaluate;
 mod judge;
@@ -48,7 +51,7 @@ mod search;
 mod tests;
 
 pub use options::{
-    Candidate, Diagnosis, FreeRun, HoldTrial, ModelSummary, Options, Series, TestSet,
+    Candidate, Diagnosis, FreeRun, HoldTrial, ModelSummary, Options, Series, StepsReport, TestSet,
 };
 
 use crate::base::error::Result;

@@ -223,9 +223,13 @@ pub struct Candidate {
     pub delta_bic: f64,
     pub train_rmse: f64,
     pub validate_rmse: f64,
-    /// Evidence on the validation record (`N ln(SSE/N) + k ln N`, `k` the coefficients
-    /// refitted there); among passing candidates the lowest wins.
+    /// Evidence on the validation record (`N ln(SSE/N)` over its scored samples, all
+    /// predicted); among passing candidates the lowest wins.
     pub validate_ic: f64,
+    /// Parameters fitted on each record's samples: `[training, validation]` (all of them
+    /// on training, judged there by BIC; on validation the record's own parts, fitted on
+    /// the samples before each forecast origin, none on a sample that judges).
+    pub fitted_on: [usize; 2],
     pub score: f64,
     pub accepted: bool,
     /// Accepted, then removed by the backward step (the final model no longer needs it).
@@ -291,6 +295,19 @@ pub struct Diagnosis {
     pub residual_structured: bool,
     /// Why the forward search ended.
     pub search_stop: String,
+    /// How the validation records judged: by prediction alone ([`super::forecast`]).
+    pub judging_rule: String,
+    /// When structure remains unexplained: what it depends on and whether a correction on
+    /// those features predicts the validation records ([`super::unexplained`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub outside_vocabulary: Option<super::unexplained::OutsideVocabulary>,
+    /// Per validation record: samples, those scored, and the final model's parameters
+    /// fitted on its own samples (none on a scored one).
+    pub validation_judging: Vec<super::forecast::Judging>,
+    /// The training residual over the drive's holds, set against the moves before them
+    /// ([`super::steps`]): creep follows the steps, a drift does not. `None` where the
+    /// drive has too few holds both ways.
+    pub step_evidence: StepsReport,
     /// Bootstrap scores of the battery under the fitted baseline, sorted.
     pub bootstrap_scores: Vec<f64>,
     /// How the input moves between samples (`--hold`, or the one `--hold auto` kept).
@@ -394,6 +411,15 @@ pub struct Series {
     pub final_label: String,
     /// Unit of the input (the validation record's), for the figures' axes.
     pub input_unit: String,
+}
+
+/// The step evidence ([`super::steps::step_evidence`]) of the baseline's and the final
+/// model's training residuals.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct StepsReport {
+    pub baseline: Option<super::steps::StepEvidence>,
+    #[serde(rename = "final")]
+    pub final_model: Option<super::steps::StepEvidence>,
 }
 
 /// The final model under one hold (`--hold auto`).

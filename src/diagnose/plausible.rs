@@ -1,8 +1,9 @@
 //! Whether a fitted model's parameters are believable: a value pressed against the range the
 //! model allows, or one the recording cannot support (a mode above every frequency the
 //! drive excites, a time constant longer than the record, a piezo gain against the record's
-//! own slope). The search does not act on these flags; the report states them beside the
-//! evidence, so a name resting on such a value is never given without saying so.
+//! own slope). A candidate whose own parameters are implausible or at a bound is not named
+//! ([`refusal`]); the report says what it was and what was preferred; an unsupported value
+//! is stated beside the evidence, so a name resting on it is never given without saying so.
 
 use super::refit::Fitted;
 use crate::physics::structure::{Effect, ParamSpec, Placement};
@@ -231,6 +232,21 @@ pub fn check_effects(f: &Fitted, scope: &Scope, effects: &[Effect]) -> Vec<Flag>
         .collect()
 }
 
+/// Why a candidate's own flags ([`check_effects`]) keep it from being named: a value the
+/// record itself contradicts (`implausible`) or one pressed against the model's range
+/// (`at-bound`: the fit wanted more than the form allows, so the form is standing in for
+/// something else). `unsupported` values are not refused: the effect is seen, only its
+/// parameter is an extrapolation (a mode above the excited band still adds its lag).
+/// `None`: nothing refuses it.
+pub fn refusal(flags: &[Flag]) -> Option<String> {
+    let bad: Vec<String> = flags
+        .iter()
+        .filter(|f| f.kind == "implausible" || f.kind == "at-bound")
+        .map(Flag::line)
+        .collect();
+    (!bad.is_empty()).then(|| bad.join("; "))
+}
+
 /// Mixing fractions whose ends are both proper models (a straight or a smooth drive
 /// between samples, a block acting at the interval's end or held from its start, all of a
 /// two-mode response in the second mode): at an end they press against nothing.
@@ -240,6 +256,14 @@ const FRACTIONS: [&str; 3] = ["intersample_curvature", "block_hold_samples", "mo
 fn at_bound(s: &ParamSpec, x: f64) -> Option<Flag> {
     if FRACTIONS.contains(&s.name) {
         return None;
+    }
+    // Where the fast creep element's range meets the slow one's: both elements want the
+    // same time scale, a partition of the model's own, not a limit of the physics.
+    let room = AT_BOUND_SHARE * (s.upper - s.lower);
+    match s.name {
+        "creep_log10_tau_s" if s.upper - x <= room => return None,
+        "creep_log10_tau2_s" if x - s.lower <= room => return None,
+        _ => {}
     }
     let room = AT_BOUND_SHARE * (s.upper - s.lower);
     let lower = x - s.lower <= room && s.neutral != s.lower;

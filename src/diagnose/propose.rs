@@ -594,6 +594,7 @@ pub(super) fn candidate(
         train_rmse: c.fitted.rmse(d.ut.len()),
         validate_rmse: c.validate_rmse,
         validate_ic: c.validate_ic,
+        fitted_on: [c.fitted.structure.n_params(), c.fitted_v],
         score: c.score,
         accepted: false,
         dropped: false,
@@ -618,7 +619,7 @@ pub(super) fn transfer(p: &Proposal) -> String {
         "actuator: parameters carried to the validation record unchanged".into()
     } else {
         format!(
-            "per-record: {} refitted on the validation record",
+            "per-record: {} fitted on each validation record's samples before each forecast origin, forecast from there",
             per.join(", ")
         )
     }

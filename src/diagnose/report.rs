@@ -241,6 +241,9 @@ pub fn text(d: &Diagnosis) -> String {
             "no structure left that the residual tests can tell from noise".to_string()
         }
     );
+    if let Some(o) = &d.outside_vocabulary {
+        let _ = writeln!(s, "outside the vocabulary: {}", o.text);
+    }
     for c in &d.couplings {
         let _ = writeln!(s, "coupling: {}", c.line());
     }
@@ -276,6 +279,45 @@ pub fn text(d: &Diagnosis) -> String {
             let _ = writeln!(s, "{line}");
         }
     }
+    for (name, e) in [
+        ("baseline", &d.step_evidence.baseline),
+        ("final model", &d.step_evidence.final_model),
+    ] {
+        if let Some(e) = e {
+            let _ = writeln!(
+                s,
+                "the {name}'s training residual over the drive's holds ({} after a rise, {} after a fall): {} (change per unit of the move {} after rises, {} after falls; correlation with the moves {:.2}, sign-flip p = {:.3}; common change t = {:.1})",
+                e.up,
+                e.down,
+                e.verdict,
+                f(e.per_unit_up),
+                f(e.per_unit_down),
+                e.correlation,
+                e.p_value,
+                e.common_t
+            );
+        }
+    }
+    let refused: Vec<String> = d
+        .candidates
+        .iter()
+        .filter(|c| c.evidence.contains("refused"))
+        .map(|c| format!("{} [{}] (round {})", c.name, c.form, c.round))
+        .collect();
+    if !refused.is_empty() {
+        let _ = writeln!(
+            s,
+            "not named although the gate passed, their own parameters implausible or at a bound (see their evidence): {}",
+            refused.join(", ")
+        );
+    }
+    let scored: usize = d.validation_judging.iter().map(|j| j.scored).sum();
+    let all: usize = d.validation_judging.iter().map(|j| j.samples).sum();
+    let _ = writeln!(
+        s,
+        "judged {} ({scored} of {all} validation samples scored)",
+        d.judging_rule
+    );
     let _ = writeln!(s, "search ended {}", d.search_stop);
     let _ = writeln!(s, "{} evaluations, {:.1} s", d.evaluations, d.wall_s);
     s

@@ -4,11 +4,13 @@
 
 use super::evaluate::{
     Data, Evaluated, bic, bootstrap_scores, choose_hold, evaluate, free_run, named, repolish,
-    repolish_budget, summary, training_residual, validation_residual,
+    repolish_budget, summary, training_residual,
 };
+use super::forecast::{self, JUDGING_RULE};
 use super::judge::{
     FEEDBACK_WORTH, Gate, MIN_EXPLAINED, RESOLVED_FRACTION, Verdict, at_noise_floor, beside_alone,
-    creep_pinned_fast, drift_first, exchange_gate, judge, resonant, round_ties, validation_gain,
+    creep_pinned_fast, drift_first, exchange_gate, judge, refuse_implausible, resonant, round_ties,
+    validation_gain,
 };
 use super::propose::{
     MAX_EXCHANGES, Memory, Proposal, SAME_RESIDUAL, Seeds, candidate, candidate_pool, exchanges,
@@ -17,9 +19,10 @@ use super::propose::{
 use super::refit::{self, Budget, Fitted};
 use super::residual::{self, Located};
 use super::{
-    Candidate, Diagnosis, FreeRun, HoldTrial, ModelSummary, Options, Series, TestSet, plausible,
-    saved, suggest,
+    Candidate, Diagnosis, FreeRun, HoldTrial, ModelSummary, Options, Series, StepsReport, TestSet,
+    plausible, saved, suggest,
 };
+use super::{steps, unexplained};
 use crate::base::error::{Error, Result};
 use crate::data::recording::Recording;
 use crate::physics::structure::{Context, CoreKind, Effect, MAX_RECORDS, Placement, Structure};
@@ -327,7 +330,8 @@ impl Records {
     /// record the first finding.
     fn locate(&self, base: &Evaluated) -> Vec<Located> {
         let (d, noise, unit) = (&self.d, self.noise, &self.unit);
-        let ev_base = validation_residual(&d.yv, base);
+        // Where, not how well: the whole record, its lead (fitted, not scored) included.
+        let ev_base: Vec<f64> = d.yv.iter().zip(&base.out_v).map(|(y, m)| y - m).collect();
         let mut located = residual::locate(&d.uv, &ev_base, self.dv, noise, unit);
         let et_base = training_residual(&d.yt, base);
         // A start-up in either record: one finding, the longest window to leave out.
@@ -462,7 +466,6 @@ impl Search {
             nt: self.rec.d.ut.len(),
             noise: self.rec.noise,
             unit: &self.rec.unit,
-            yv: &self.rec.d.yv,
             seed: self.rec.opts.seed,
         }
     }
@@ -602,7 +605,13 @@ impl Search {
         };
         let mut tried = fit_all(&rest);
         let gate = self.gate();
-        let mut verdicts: Vec<Verdict> = tried.iter().map(|c| judge(c, current, &gate)).collect();
+        let verdict =
+            |p: &Proposal, c: &Evaluated| refuse_implausible(judge(c, current, &gate), p, c, d);
+        let mut verdicts: Vec<Verdict> = rest
+            .iter()
+            .zip(&tried)
+            .map(|(p, c)| verdict(p, c))
+            .collect();
         let timing_passes = rest
             .iter()
             .zip(&verdicts)
@@ -622,7 +631,7 @@ impl Search {
             });
         if dynamics_helps {
             let moved = fit_all(&placed);
-            verdicts.extend(moved.iter().map(|c| judge(c, current, &gate)));
+            verdicts.extend(placed.iter().zip(&moved).map(|(p, c)| verdict(p, c)));
             tried.extend(moved);
             rest.extend(placed);
         }
@@ -707,6 +716,8 @@ impl Search {
         // margin of creep's), the drift is taken first and creep must then pass on top of
         // it by what the input drives (carried to the validation record with the same
         // parameters); the backward step drops the drift if creep turns out to explain it.
+        // Unless the parent's training residual follows the drive's steps (creep's
+        // signature, which a drift of the record cannot have): then creep is not made to wait.
         let train_delta = |i: usize| singles.iter().find(|x| x.0 == i).map_or(0.0, |x| x.1);
         if let (Some(b), Some(r)) = (best, best_per_record)
             && pool[b.0].effects().contains(&Effect::Creep)
@@ -716,11 +727,27 @@ impl Search {
                 self.rec.opts.bic_margin,
             )
         {
-            self.candidates[b.1].notes.push(format!(
-                "transfer: a drift of each record ({}) passes too: taken first, so creep must add what the input drives",
-                pool[r.0].form()
-            ));
-            best = Some(r);
+            let d = &self.rec.d;
+            let e = training_residual(&d.yt, &self.current);
+            match steps::step_evidence(&d.ut, &e, self.rec.dt, self.rec.opts.seed) {
+                Some(s) if s.verdict == steps::FOLLOWS => {
+                    self.candidates[b.1].notes.push(format!(
+                        "transfer: a drift of each record ({}) passes too, but the residual follows the drive's steps ({} up and {} down holds, correlation {:.2} with the moves, sign-flip p = {:.3}): creep's signature, so creep is named",
+                        pool[r.0].form(),
+                        s.up,
+                        s.down,
+                        s.correlation,
+                        s.p_value
+                    ));
+                }
+                _ => {
+                    self.candidates[b.1].notes.push(format!(
+                        "transfer: a drift of each record ({}) passes too: taken first, so creep must add what the input drives",
+                        pool[r.0].form()
+                    ));
+                    best = Some(r);
+                }
+            }
         }
         // A lag in disguise yields to input timing that passes too: a mode with no
         // resonance is a low-pass; creep pinned at its fastest time constant is a lag
@@ -799,9 +826,10 @@ impl Search {
             min_explained: 2.0 * MIN_EXPLAINED,
             ..self.gate()
         };
-        let verdicts: Vec<Verdict> = fitted
+        let verdicts: Vec<Verdict> = proposals
             .iter()
-            .map(|c| judge(c, &self.current, &gate))
+            .zip(&fitted)
+            .map(|(p, c)| refuse_implausible(judge(c, &self.current, &gate), p, c, &self.rec.d))
             .collect();
         let mut best: Option<Pick> = None;
         for (i, ((p, c), v)) in proposals.iter().zip(&fitted).zip(&verdicts).enumerate() {
@@ -883,7 +911,7 @@ impl Search {
             .zip(&reduced)
             .map(|(e, r)| {
                 let needed = MIN_EXPLAINED * noise * noise;
-                let gain = validation_gain(r, &self.current, &d.yv, opts.seed, needed);
+                let gain = validation_gain(r, &self.current, opts.seed, needed);
                 (e, r, gain)
             })
             .filter(|(_, _, k)| !k.2)
@@ -1002,6 +1030,17 @@ impl Search {
                     v.map_or("not fitted".to_string(), |v| v.evidence)
                 );
             }
+            let refused = plausible::refusal(&plausible::check_effects(
+                &c.fitted,
+                &self.rec.d.scope,
+                &p.effects(),
+            ));
+            if let Some(why) = &refused {
+                beside.push_str(&format!(
+                    "; refused, its own parameters are not plausible: {why}"
+                ));
+            }
+            passed &= refused.is_none();
             if passed && best.is_none_or(|b| d_all < b.1) {
                 best = Some((i, d_all));
             }
@@ -1117,6 +1156,23 @@ impl Search {
         let unexplained = structured && self.current_summary.validate_rmse > resolution;
         let series = self.series();
         let nuisances = self.nuisances();
+        let validation_judging = self.rec.d.judging(&self.current.fitted);
+        let outside_vocabulary = if unexplained {
+            self.outside_vocabulary()
+        } else {
+            None
+        };
+        let step_evidence = {
+            let d = &self.rec.d;
+            let on = |out: &[f64]| {
+                let e: Vec<f64> = d.yt.iter().zip(out).map(|(y, m)| y - m).collect();
+                steps::step_evidence(&d.ut, &e, self.rec.dt, self.rec.opts.seed)
+            };
+            StepsReport {
+                baseline: on(&series.baseline[0]),
+                final_model: on(&series.final_model[0]),
+            }
+        };
         self.spin.finish_and_clear();
         let model = self.model_file();
         let (rec, opts) = (&self.rec, &self.rec.opts);
@@ -1147,6 +1203,10 @@ impl Search {
             resolution,
             residual_structured: structured,
             search_stop: self.search_stop,
+            judging_rule: JUDGING_RULE.to_string(),
+            outside_vocabulary,
+            validation_judging,
+            step_evidence,
             bootstrap_scores: self.boot,
             hold: self.current.fitted.structure.hold().name().into(),
             hold_trials: self.hold_trials,
@@ -1193,6 +1253,40 @@ impl Search {
                 final_rmse: free_run(&self.current.fitted, t),
             })
             .collect()
+    }
+
+    /// What the structure the final model leaves depends on, and whether a correction on
+    /// those features fitted on training predicts the validation records
+    /// ([`unexplained::characterise`]; the validation records judged on their scored
+    /// samples, as every candidate was).
+    fn outside_vocabulary(&self) -> Option<unexplained::OutsideVocabulary> {
+        let (d, c) = (&self.rec.d, &self.current);
+        let et = training_residual(&d.yt, c);
+        let ev: Vec<f64> = d.yv.iter().zip(&c.out_v).map(|(y, m)| y - m).collect();
+        let train = unexplained::Record {
+            u: &d.ut,
+            e: &et,
+            y: &c.out_t,
+            dt: self.rec.dt,
+            scored: 0..et.len(),
+        };
+        let mut at = 0;
+        let parts: Vec<unexplained::Record> = d
+            .parts()
+            .into_iter()
+            .map(|(n, dt)| {
+                let r = unexplained::Record {
+                    u: &d.uv[at..at + n],
+                    e: &ev[at..at + n],
+                    y: &c.out_v[at..at + n],
+                    dt,
+                    scored: forecast::scored(n),
+                };
+                at += n;
+                r
+            })
+            .collect();
+        unexplained::characterise(&train, &parts, self.rec.noise, self.rec.opts.seed)
     }
 
     /// The records and the baseline's and final model's outputs, for the figures.

@@ -60,11 +60,7 @@ pub(super) fn tie(
     }
     let validate_share = fall_other / fall_named;
     // Mean square of the other minus the named: positive when the other is worse.
-    let band = gain_band(
-        &validation_residual(&d.yv, o),
-        &validation_residual(&d.yv, n),
-        seed,
-    );
+    let band = gain_band(validation_residual(o), validation_residual(n), seed);
     // Within the share either way: a candidate explaining far more, or far less, is no
     // alternative reading of the same evidence.
     let close = |share: f64| (1.0 - TIE_SHARE..=1.0 / (1.0 - TIE_SHARE)).contains(&share);
@@ -74,11 +70,13 @@ pub(super) fn tie(
         return None;
     }
     let correction = |e: &Evaluated| -> Vec<f64> {
-        e.out_v
+        let full: Vec<f64> = e
+            .out_v
             .iter()
             .zip(&parent.out_v)
             .map(|(a, b)| a - b)
-            .collect()
+            .collect();
+        d.scored(&full)
     };
     let r = correlation(&correction(n), &correction(o));
     let (name, form) = label;

@@ -8,7 +8,7 @@
 
 use super::columns::spline_hats;
 use super::*;
-use crate::base::lstsq::bounded_least_squares;
+use crate::base::lstsq::{bounded_least_squares, dot};
 
 /// A record forecast from its origins ([`Structure::forecast_on`]).
 #[derive(Clone, Debug)]
@@ -96,6 +96,17 @@ impl Structure {
                     }
                 }
             }
+            // Only what these samples can tell apart: a column mostly the same as those
+            // before it (a slow decay over a short lead is an offset) would get its
+            // coefficient from the noise and carry it into the forecast.
+            let keep = identifiable(&sub);
+            let (idx, sub): (Vec<usize>, Vec<Vec<f64>>) = idx
+                .into_iter()
+                .zip(sub)
+                .zip(&keep)
+                .filter(|(_, k)| **k)
+                .map(|(x, _)| x)
+                .unzip();
             let rest: Vec<f64> = (0..fit_to).map(|k| y[k] - actuator[k]).collect();
             let bounds: Vec<(usize, f64)> = self
                 .state_bounds(theta, self.state_range(&u[..fit_to], &y[..fit_to]))
@@ -147,6 +158,34 @@ impl Structure {
             fitted: own.len(),
         }
     }
+}
+
+/// Share of a column's size that must lie outside the span of the columns before it for
+/// its coefficient to be fitted on these samples (a column 99.5 % the same as the others
+/// leaves 10 %).
+const IDENTIFIABLE: f64 = 0.03;
+
+/// Which of `cols` (in order) the samples can identify ([`IDENTIFIABLE`]), by Gram-Schmidt
+/// against the kept ones.
+fn identifiable(cols: &[Vec<f64>]) -> Vec<bool> {
+    let mut basis: Vec<Vec<f64>> = Vec::new();
+    cols.iter()
+        .map(|c| {
+            let norm0 = dot(c, c).sqrt();
+            let mut v = c.clone();
+            for q in &basis {
+                let a = dot(&v, q);
+                v.iter_mut().zip(q).for_each(|(x, qi)| *x -= a * qi);
+            }
+            let norm = dot(&v, &v).sqrt();
+            let keep = norm0 > 0.0 && norm.is_finite() && norm >= IDENTIFIABLE * norm0;
+            if keep {
+                v.iter_mut().for_each(|x| *x /= norm);
+                basis.push(v);
+            }
+            keep
+        })
+        .collect()
 }
 
 #[cfg(test)]
