@@ -78,13 +78,29 @@ fn every_concealed_effect_is_named_and_the_null_case_raises_no_alarm() {
         .install(|| proof::run(&kinds, &[1], 4.0, &opts(1)))
         .unwrap();
     print!("{}", proof::markdown(&p));
+    let get = |name: &str| &diagnoses.iter().find(|d| d.0 == name).unwrap().1;
     for r in &p.rows {
+        // Judged by prediction alone, the twin's 4-s sensor ramp is forecast by a drift
+        // no better than creep predicts it: the diagnosis names one and reports the other
+        // as tied (the old rule refitted the drift on the validation record and so named
+        // it). A tie with the truth is what the records support; anything else fails.
+        if r.truth == "offset-drift" && !r.exact {
+            let d = get("offset-drift-seed1");
+            let tied = d
+                .in_final()
+                .any(|c| c.ties.iter().any(|t| t.name == "offset-drift"));
+            assert!(tied && r.found.len() == 1 && r.final_ratio < 1.3, "{r:?}");
+            continue;
+        }
         // Concealed: the plain model's validation residual only a few times the noise.
         if r.truth == "none" {
             assert!(r.baseline_ratio < 1.2, "{r:?}");
         } else {
+            // (Up to 6x: the plain model's validation RMSE is a prediction now, its
+            // record's own state fitted on the lead only; the sizes were set when it was a
+            // fit, at most 4x.)
             assert!(
-                (1.5..=4.0).contains(&r.baseline_ratio),
+                (1.5..=6.0).contains(&r.baseline_ratio),
                 "{} is not concealed: {r:?}",
                 r.truth
             );
@@ -93,11 +109,14 @@ fn every_concealed_effect_is_named_and_the_null_case_raises_no_alarm() {
         }
         assert!(r.exact, "{} diagnosed as {:?}", r.truth, r.found);
     }
-    assert_eq!(p.detection, (8, 8));
+    assert!(
+        p.detection.0 >= 7 && p.detection.1 == 8,
+        "{:?}",
+        p.detection
+    );
     assert_eq!(p.false_alarms, (0, 1));
     // The diagnosis carries its evidence: the null case passes the calibrated tests, a
     // concealed effect's baseline fails them and is located.
-    let get = |name: &str| &diagnoses.iter().find(|d| d.0 == name).unwrap().1;
     let null = get("none-seed1");
     assert!(null.baseline.p_value > 0.05 && !null.unexplained);
     assert!(null.candidates.iter().all(|c| !c.accepted));
@@ -560,8 +579,8 @@ fn command_handles_a_record_starting_in_motion_and_one_with_long_rests() {
 
 /// A real piezo stack (PI P-885.91, `$OPTBENCH_DATA/pea_p885_dbo`) as a regression case:
 /// both runs load as the lab wrote them, the start-up each begins with is found, and with
-/// it left out the diagnosis names one effect, creep, and flags it as more creep than a
-/// piezo has (n pinned at 1 to keep the test short).
+/// it left out the creep the identification run supports, more than a piezo has, is refused
+/// rather than named (n pinned at 1 to keep the test short).
 #[test]
 fn the_p885_stack_is_diagnosed_with_its_start_up_found_and_its_creep_flagged() {
     let Some(dir) = data_set("pea_p885_dbo") else {
@@ -592,37 +611,29 @@ fn the_p885_stack_is_diagnosed_with_its_start_up_found_and_its_creep_flagged() {
         );
     }
     let (text, json) = run(&["--trim-start", "1", "--suggest"], "trimmed");
-    assert_eq!(json["left_out"], serde_json::json!(["creep"]), "{text}");
-    // No tie: the experiment asked for is the one that would settle the reading the
-    // identification run supports and the test run does not confirm.
-    let x = &json["next_experiment"];
-    let question = x["question"].as_str().unwrap_or_default();
-    assert!(question.contains("does not confirm"), "{text}");
-    let spec = x["signal"].as_str().unwrap();
-    let u = optbench::data::signal::Signal::parse(spec)
-        .unwrap()
-        .sample(0.005, x["duration_s"].as_f64().unwrap());
-    let (lo, hi) = u
-        .iter()
-        .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(*v), b.max(*v)));
-    assert!(lo >= -1e-9 && hi <= 3.6 + 1e-9, "{spec}: {lo}..{hi} V");
-    assert!(x["separation_over_noise"].as_f64().unwrap() > 3.0, "{text}");
+    // Creep fits the identification run, but only with more creep than a piezo has (its
+    // total over a quarter of the drive): refused, not named (issue 50), and said so.
+    let left = json["left_out"].as_array().unwrap();
+    assert!(!left.iter().any(|e| e == "creep"), "{text}");
+    let refused = json["candidates"].as_array().unwrap().iter().any(|c| {
+        c["name"] == "creep"
+            && c["evidence"]
+                .as_str()
+                .is_some_and(|e| e.contains("refused") && e.contains("[implausible] creep_total"))
+    });
+    assert!(refused, "{text}");
     assert!(
-        text.contains("next experiment (") && text.contains(spec),
+        text.contains("not named although the gate passed"),
         "{text}"
     );
     assert_eq!(json["samples"], serde_json::json!([7827, 13955]));
     let v = |set: &str| json[set]["validate_rmse"].as_f64().unwrap();
-    assert!(v("final") < 0.8 * v("baseline"), "{text}");
+    assert!(v("final") < v("baseline"), "{text}");
+    // Nothing implausible is accepted.
     let flags = json["final"]["plausibility"].as_array().unwrap();
+    assert!(!flags.iter().any(|f| f["kind"] == "implausible"), "{text}");
     assert!(
-        flags
-            .iter()
-            .any(|f| f["parameter"] == "creep_total" && f["kind"] == "implausible"),
-        "{text}"
-    );
-    assert!(
-        text.contains("! accepted although [implausible] creep_total"),
+        !text.contains("! accepted although [implausible]"),
         "{text}"
     );
 }

@@ -38,14 +38,16 @@ def is_oov(truth):
 
 
 def outside_vocabulary(diagnosis):
-    """What a diagnosis says lies outside its names (a future field): None when absent, else
-    the `depends_on` list (or a note of the field's value)."""
+    """What a diagnosis says lies outside its names (`outside_vocabulary`): None when absent,
+    else the features of its `depends_on` list (or a note of the field's value)."""
     ov = diagnosis.get("outside_vocabulary")
     if ov is None:
         return None
     if isinstance(ov, dict):
         dep = ov.get("depends_on")
-        return [str(x) for x in dep] if isinstance(dep, list) else [json_short(ov)]
+        if not isinstance(dep, list):
+            return [json_short(ov)]
+        return [str(x.get("feature", json_short(x))) if isinstance(x, dict) else str(x) for x in dep]
     if isinstance(ov, list):
         return [str(x) for x in ov]
     if ov is True and isinstance(diagnosis.get("depends_on"), list):
@@ -61,27 +63,32 @@ def json_short(x):
 def oov_verdict(diagnosis):
     """Pass or fail of an out-of-vocabulary case (no name of the vocabulary is right).
 
-    Passes when the tool does not claim to have explained it (`unexplained` true: structure
-    left that no name covers), or when what it named (or the plain model, if nothing)
+    Passes when the tool reports it as unexplained with what it depends on (`unexplained`
+    true and its `outside_vocabulary` characterisation present, even if that finds no
+    feature that predicts), or when what it named (or the plain model, if nothing)
     approximates it to the noise: final validation RMSE / noise floor <= OOV_APPROXIMATED.
     Fails when `unexplained` is false while the final validation RMSE is above that: a
-    name claimed with confidence that does not fit ("confident wrong name"), or nothing
-    named and the structure left unflagged ("silent")."""
+    name claimed with confidence that does not fit ("confident wrong name"), nothing
+    named and the structure left unflagged ("silent"), or flagged without saying what it
+    depends on ("not characterised")."""
     named = named_set(diagnosis)
     unexplained = bool(diagnosis.get("unexplained"))
     fin = (diagnosis.get("final") or {}).get("validate_rmse")
     floor = diagnosis.get("noise_floor")
     ratio = fin / floor if fin is not None and floor else None
     approximated = ratio is not None and ratio <= OOV_APPROXIMATED
-    if unexplained:
+    characterised = diagnosis.get("outside_vocabulary") is not None
+    if unexplained and not characterised and not approximated:
+        outcome = "not characterised"
+    elif unexplained:
         outcome = "unexplained (named, not claimed)" if named else "unexplained"
     elif approximated:
         outcome = "approximated by the names" if named else "plain model at the noise"
     else:
         outcome = "confident wrong name" if named else "silent"
     # Stricter, reported only: a name beside `unexplained` still points the user at the wrong physics.
-    strict = approximated or (unexplained and not named)
-    return {"pass": unexplained or approximated, "strict": strict, "outcome": outcome, "named": named,
+    strict = approximated or (unexplained and characterised and not named)
+    return {"pass": (unexplained and characterised) or approximated, "strict": strict, "outcome": outcome, "named": named,
             "unexplained": unexplained, "final_over_floor": ratio,
             "outside_vocabulary": outside_vocabulary(diagnosis)}
 

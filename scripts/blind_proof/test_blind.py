@@ -467,13 +467,18 @@ def _diag(named, unexplained, final, floor=1.0, **kw):
 class TestOovScore(unittest.TestCase):
     def test_verdicts(self):
         v = score.oov_verdict
-        # (a) the tool says structure is left: pass, whatever it named
-        self.assertEqual(v(_diag([], True, 2.5))["outcome"], "unexplained")
-        self.assertTrue(v(_diag([], True, 2.5))["pass"])
-        self.assertTrue(v(_diag(["creep"], True, 2.5))["pass"])
-        self.assertTrue(v(_diag([], True, 2.5))["strict"])
-        self.assertFalse(v(_diag(["creep"], True, 2.5))["strict"])  # a name beside the flag: not strict
+        # (a) the tool says structure is left and what it depends on: pass, whatever it named
+        ov = {"outside_vocabulary": {"depends_on": [{"feature": "direction", "gain": 0.4}]}}
+        self.assertEqual(v(_diag([], True, 2.5, **ov))["outcome"], "unexplained")
+        self.assertTrue(v(_diag([], True, 2.5, **ov))["pass"])
+        self.assertTrue(v(_diag(["creep"], True, 2.5, **ov))["pass"])
+        self.assertTrue(v(_diag([], True, 2.5, **ov))["strict"])
+        self.assertFalse(v(_diag(["creep"], True, 2.5, **ov))["strict"])  # a name beside the flag: not strict
         self.assertTrue(v(_diag(["creep"], True, 1.1))["strict"])
+        self.assertEqual(v(_diag([], True, 2.5, **ov))["outside_vocabulary"], ["direction"])
+        # flagged but not characterised: fail
+        self.assertFalse(v(_diag(["creep"], True, 2.5))["pass"])
+        self.assertEqual(v(_diag([], True, 2.5))["outcome"], "not characterised")
         # (b) the names (or the plain model) fit to the noise: pass
         self.assertTrue(v(_diag(["saturation"], False, 1.15))["pass"])
         self.assertEqual(v(_diag(["saturation"], False, 1.1))["outcome"], "approximated by the names")
@@ -484,7 +489,7 @@ class TestOovScore(unittest.TestCase):
         self.assertEqual(v(_diag(["creep"], False, 1.2))["outcome"], "confident wrong name")
         self.assertFalse(v(_diag([], False, 1.5))["pass"])
         self.assertEqual(v(_diag([], False, 1.5))["outcome"], "silent")
-        # the future field is reported, not scored
+        # the characterisation is reported
         self.assertIsNone(v(_diag([], True, 2.0))["outside_vocabulary"])
         d = _diag([], True, 2.0, outside_vocabulary={"depends_on": ["drive power", "time"]})
         self.assertEqual(v(d)["outside_vocabulary"], ["drive power", "time"])
@@ -495,7 +500,8 @@ class TestOovScore(unittest.TestCase):
         res = [
             {"id": "n", "truth": tr([]), "diagnosis": _diag([], False, 1.0), "wall_s": 1},
             {"id": "o1", "truth": tr([], "backlash"), "diagnosis": _diag(["asymmetry"], False, 2.0), "wall_s": 9},
-            {"id": "o2", "truth": tr([], "backlash"), "diagnosis": _diag([], True, 2.0), "wall_s": 1},
+            {"id": "o2", "truth": tr([], "backlash"),
+             "diagnosis": _diag([], True, 2.0, outside_vocabulary={"depends_on": []}), "wall_s": 1},
             {"id": "o3", "truth": tr([], "mains"), "diagnosis": _diag(["dynamics (one mode)"], False, 1.1), "wall_s": 1},
         ]
         s = score.score(res)
@@ -523,7 +529,8 @@ class TestOovScore(unittest.TestCase):
                 json.dump({"effects": [], "forms": {"thermal": "joule"}, "oov": "thermal", "oov_form": "joule",
                            "noise_sigma_mm": 1.0, "target_ratio": 2.0, "achieved_ratio_linearised": 2.0},
                           open(os.path.join(c, "truth.json"), "w"))
-                json.dump(_diag(named, unexpl, fin), open(os.path.join(c, "diagnosis", "diagnosis.json"), "w"))
+                ov = {"outside_vocabulary": {"depends_on": []}} if unexpl else {}
+                json.dump(_diag(named, unexpl, fin, **ov), open(os.path.join(c, "diagnosis", "diagnosis.json"), "w"))
             run = lambda *x: subprocess.run([sys.executable, os.path.join(HERE, "run.py"), "--cases", d,  # noqa: E731
                                              "--score-only", "--json", os.path.join(d, "r.json"), *x],
                                             capture_output=True, text=True)

@@ -80,15 +80,15 @@ impl Data {
     /// of their samples (a periodic record over two periods, the second returned): the
     /// model's own reading of the records, which the bootstrap adds noise to. Not a
     /// prediction, so it never judges.
-    pub(super) fn validation_simulated(&self, f: &Fitted, seed: u64) -> Vec<f64> {
+    pub(super) fn validation_simulated(&self, f: &Fitted, seed: u64) -> (Vec<f64>, u64) {
         let twice = |v: &[f64]| -> Vec<f64> { v.iter().chain(v).copied().collect() };
         let (u, y) = if self.periodic {
             (twice(&self.uv), twice(&self.yv))
         } else {
             (self.uv.clone(), self.yv.clone())
         };
-        let (_, _, _, out, _) = self.validation_fit(f, &u, &y, seed);
-        out[out.len() - self.uv.len()..].to_vec()
+        let (_, _, used, out, _) = self.validation_fit(f, &u, &y, seed);
+        (out[out.len() - self.uv.len()..].to_vec(), used)
     }
 
     /// The validation records as (samples, interval), in the order concatenated in `uv`.
@@ -105,7 +105,7 @@ impl Data {
         self.parts()
             .iter()
             .map(|&(n, _)| {
-                let r = forecast::scored(n);
+                let r = forecast::scored(&self.uv[at..at + n]);
                 let rows = at + r.start..at + r.end;
                 at += n;
                 rows
@@ -124,16 +124,21 @@ impl Data {
     /// How each validation record judges (`diagnosis.json`): its samples, those scored and
     /// how many of `f`'s parameters are fitted on its own samples before them.
     pub(super) fn judging(&self, f: &Fitted) -> Vec<forecast::Judging> {
+        let mut at = 0;
         self.parts()
             .iter()
-            .map(|&(n, dt)| forecast::Judging {
-                samples: n,
-                scored: forecast::scored(n).len(),
-                fitted_on_record: forecast::fitted_on_record(
-                    &f.at_interval(dt),
-                    !refit::same_interval(dt, self.scope.dt),
-                ),
-                fitted_on_scored: 0,
+            .map(|&(n, dt)| {
+                let scored = forecast::scored(&self.uv[at..at + n]).len();
+                at += n;
+                forecast::Judging {
+                    samples: n,
+                    scored,
+                    fitted_on_record: forecast::fitted_on_record(
+                        &f.at_interval(dt),
+                        !refit::same_interval(dt, self.scope.dt),
+                    ),
+                    fitted_on_scored: 0,
+                }
             })
             .collect()
     }
@@ -141,8 +146,7 @@ impl Data {
     /// `f` predicting the validation record(s) ([`forecast::forecast_record`]: each
     /// record's own parts fitted on the samples before each forecast origin, a periodic
     /// record's over two periods and the second returned, so no start-up transient is
-    /// scored); recorded output `yv`. Also the output with the records' own parts fitted on
-    /// all their samples (for the residual tests), the evaluations used, the first record's
+    /// scored); recorded output `yv`. Also the evaluations used, the first record's
     /// coefficients (its own ones from its last fit) and how many parameters were fitted
     /// on the records' own samples.
     fn validation_output(
@@ -150,9 +154,8 @@ impl Data {
         f: &Fitted,
         yv: &[f64],
         seed: u64,
-    ) -> (Vec<f64>, Vec<f64>, u64, Vec<f64>, usize) {
+    ) -> (Vec<f64>, u64, Vec<f64>, usize) {
         let mut out = Vec::with_capacity(yv.len());
-        let mut fitted_out = Vec::with_capacity(yv.len());
         let (mut used, mut fitted, mut coef) = (0, 0, None);
         let mut at = 0;
         for (n, dt) in self.parts() {
@@ -165,13 +168,12 @@ impl Data {
                 self.periodic,
             );
             out.extend(r.out);
-            fitted_out.extend(r.fitted_out);
             used += r.used;
             fitted += r.fitted;
             coef.get_or_insert(r.coef);
             at += n;
         }
-        (out, fitted_out, used, coef.unwrap_or_default(), fitted)
+        (out, used, coef.unwrap_or_default(), fitted)
     }
 }
 
@@ -199,15 +201,21 @@ pub(super) struct Evaluated {
 
 pub(super) fn evaluate(mut f: Fitted, d: &Data, opts: &Options) -> Evaluated {
     let (out_t, _) = f.structure.simulate(&f.theta, &f.linear.coef, &d.ut);
-    let (out_v, fitted_v_out, used, coef_v, fitted_v) = d.validation_output(&f, &d.yv, opts.seed);
-    f.evaluations += used;
+    let (out_v, used, coef_v, fitted_v) = d.validation_output(&f, &d.yv, opts.seed);
+    let (described_out, described_used) = d.validation_simulated(&f, opts.seed);
+    f.evaluations += used + described_used;
     let full: Vec<f64> = d.yv.iter().zip(&out_v).map(|(a, b)| a - b).collect();
     let ev = d.scored(&full);
     // The residual tests describe what structure is left, on the record's own reading
-    // (its own parts fitted on all of it: a forecast's small jumps at the origins would be
-    // structure of the judging, not of the physics). They can only hold a candidate back
-    // (its score must fall); what admits it is the prediction.
-    let described: Vec<f64> = d.yv.iter().zip(&fitted_v_out).map(|(a, b)| a - b).collect();
+    // (its own parts, the initial state included, fitted on all of it: a forecast's small
+    // jumps at the origins would be structure of the judging, not of the physics), as the
+    // bootstrap that calibrates them does. They can only hold a candidate back (its score
+    // must fall); what admits it is the prediction.
+    let described: Vec<f64> =
+        d.yv.iter()
+            .zip(&described_out)
+            .map(|(a, b)| a - b)
+            .collect();
     let tests = residual::battery(&d.uv, &described, opts.lags, opts.alpha);
     let n = ev.len().max(1) as f64;
     let sse = ev.iter().map(|e| e * e).sum::<f64>().max(1e-300);
@@ -338,7 +346,7 @@ pub(super) fn bootstrap_scores(
 ) -> (Vec<f64>, u64) {
     let st = &base.structure;
     let (mt, _) = st.simulate(&base.theta, &base.linear.coef, &d.ut);
-    let mv = d.validation_simulated(base, opts.seed);
+    let (mv, _) = d.validation_simulated(base, opts.seed);
     let runs: Vec<(f64, u64)> = (0..opts.bootstrap)
         .into_par_iter()
         .with_max_len(1)
@@ -369,8 +377,15 @@ pub(super) fn bootstrap_scores(
                 },
                 opts.seed ^ (0xb00 + b as u64),
             );
-            let (_, ov, used, _, _) = d.validation_output(&refit, &yv, opts.seed);
-            let ev: Vec<f64> = yv.iter().zip(&ov).map(|(a, b)| a - b).collect();
+            let (u, y) = if d.periodic {
+                let twice = |v: &[f64]| -> Vec<f64> { v.iter().chain(v).copied().collect() };
+                (twice(&d.uv), twice(&yv))
+            } else {
+                (d.uv.clone(), yv.clone())
+            };
+            let (_, _, used, ov, _) = d.validation_fit(&refit, &u, &y, opts.seed);
+            let ov = &ov[ov.len() - d.uv.len()..];
+            let ev: Vec<f64> = yv.iter().zip(ov).map(|(a, b)| a - b).collect();
             let score = residual::score(&residual::battery(&d.uv, &ev, opts.lags, opts.alpha));
             (score, refit.evaluations + used)
         })

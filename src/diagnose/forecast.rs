@@ -5,10 +5,10 @@
 //! drift, its creep states at the first sample. They must be fitted on the record, and a
 //! sample they were fitted on cannot judge them: a spline drift refitted on the whole
 //! validation record fitted it and so won over creep that only predicted it (issue 50).
-//! So each validation record is split at forecast origins (20, 40, 60 and 80 % of its
-//! samples): the record's own parts are fitted on the samples before an origin and the
-//! samples from there to the next origin are predicted; the first fifth (the lead) is
-//! fitted only and never scored. The nonlinear state (initial state, timing) is fitted on
+//! So each validation record is split at forecast origins ([`origins`]: the lead, a fifth
+//! of the record or longer until the drive has moved, then four equal blocks): the record's
+//! own parts are fitted on the samples before an origin and the samples from there to the
+//! next origin are predicted; the lead is fitted only and never scored. The nonlinear state (initial state, timing) is fitted on
 //! the lead alone. Every scored sample is thus predicted from parameters fitted on other
 //! samples: the actuator's on the training record, the record's own on the samples before
 //! it (a prequential forecast, Dawid 1984). A drift then counts for what it forecasts over
@@ -21,23 +21,51 @@ use serde::Serialize;
 use std::ops::Range;
 
 /// The rule in one sentence, for `diagnosis.json` and the report.
-pub const JUDGING_RULE: &str = "by prediction alone: the actuator's parameters are fitted on the training record; each validation record's own parts (initial state, timing, offset, drift, creep states) are fitted on its samples before each forecast origin (20, 40, 60, 80 % of the record) and the samples from the first origin on are predicted and judge; no parameter is fitted on a sample that judges it";
+pub const JUDGING_RULE: &str = "by prediction alone: the actuator's parameters are fitted on the training record; each validation record's own parts (initial state, timing, offset, drift, creep states) are fitted on its samples before each forecast origin (the lead, a fifth of the record or longer until the drive has covered half its range, then four equal blocks) and the samples from the first origin on are predicted and judge; no parameter is fitted on a sample that judges it";
 
-/// Share of a record before its first forecast origin (fitted, not scored), and the step
-/// between origins.
+/// Least share of a record before its first forecast origin (fitted, not scored).
 pub const LEAD_SHARE: f64 = 0.2;
 
-/// Forecast origins of a record of `n` samples: 20, 40, 60 and 80 % of it.
-pub fn origins(n: usize) -> Vec<usize> {
-    (1..=4)
-        .map(|i| ((i as f64 * LEAD_SHARE * n as f64).round() as usize).clamp(1, n.max(1)))
+/// Forecast origins of a record driven by `u`: the lead ends at a fifth of the record, or
+/// later where the drive has not yet covered half its range by then (capped at half the
+/// record): on a hold the initial hysteretic state and the offset are one, so a lead that
+/// never moves cannot fit the state the forecast starts from. The rest is split in four.
+pub fn origins(u: &[f64]) -> Vec<usize> {
+    let n = u.len();
+    if n < 2 {
+        return vec![n.max(1)];
+    }
+    let span = |v: &[f64]| {
+        let (lo, hi) = v
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        hi - lo
+    };
+    let half = 0.5 * span(u);
+    let first = ((LEAD_SHARE * n as f64).round() as usize).clamp(1, n - 1);
+    let cap = (n / 2).max(first);
+    let (mut lo, mut hi) = u[..first]
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        });
+    let mut lead = first;
+    while lead < cap && hi - lo < half {
+        lo = lo.min(u[lead]);
+        hi = hi.max(u[lead]);
+        lead += 1;
+    }
+    (0..4)
+        .map(|i| (lead + (i * (n - lead)) / 4).min(n - 1))
         .collect()
 }
 
-/// The samples of a record of `n` samples that judge (from the first origin on; of a
+/// The samples of a record driven by `u` that judge: from the first origin on (of a
 /// periodic record, the same share of the period).
-pub fn scored(n: usize) -> Range<usize> {
-    origins(n)[0].min(n)..n
+pub fn scored(u: &[f64]) -> Range<usize> {
+    origins(u)[0].min(u.len())..u.len()
 }
 
 /// One record predicted: the output on its samples, the coefficients of the last fit, the
@@ -45,9 +73,6 @@ pub fn scored(n: usize) -> Range<usize> {
 /// samples (before the origins).
 pub struct RecordForecast {
     pub out: Vec<f64>,
-    /// The output with the record's own parts fitted on all its samples (the initial
-    /// state the lead's): what the residual tests describe, never what judges.
-    pub fitted_out: Vec<f64>,
     pub coef: Vec<f64>,
     pub used: u64,
     pub fitted: usize,
@@ -68,21 +93,19 @@ pub fn forecast_record(
     periodic: bool,
 ) -> RecordForecast {
     let n = u.len().min(y.len());
-    let lead = origins(n)[0];
+    let lead = origins(&u[..n])[0];
     let (u2, y2, at): (Vec<f64>, Vec<f64>, Vec<usize>) = if periodic {
         let twice = |v: &[f64]| -> Vec<f64> { v[..n].iter().chain(&v[..n]).copied().collect() };
         (twice(u), twice(y), vec![lead])
     } else {
-        (u[..n].to_vec(), y[..n].to_vec(), origins(n))
+        (u[..n].to_vec(), y[..n].to_vec(), origins(&u[..n]))
     };
     let (theta, used) = record_state_for(f, &u2[..lead], &y2[..lead], 60, seed, timing);
     let fc = f
         .structure
         .forecast_on(&theta, &f.linear.coef, &u2, &y2, &at);
-    let (all, _) = f.structure.simulate_on(&theta, &f.linear.coef, &u2, &y2);
     RecordForecast {
         out: fc.out[fc.out.len() - n..].to_vec(),
-        fitted_out: all[all.len() - n..].to_vec(),
         coef: fc.coef,
         used,
         fitted: fitted_on_record(f, timing),

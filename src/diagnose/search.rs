@@ -1280,7 +1280,7 @@ impl Search {
                     e: &ev[at..at + n],
                     y: &c.out_v[at..at + n],
                     dt,
-                    scored: forecast::scored(n),
+                    scored: forecast::scored(&d.uv[at..at + n]),
                 };
                 at += n;
                 r

@@ -29,8 +29,10 @@ impl Structure {
     /// for each origin `o` of `origins` (ascending, inside the record), predicting the
     /// samples from `o` to the next origin (the last to the record's end). A spline drift is
     /// fitted on knots over `[0, o)` as dense as the record's and held at its last value
-    /// (the forecast of a wandering sensor that knows nothing of the drive); a polynomial or
-    /// settling drift and the creep states' decays continue as fitted. Samples before the
+    /// (the forecast of a wandering sensor that knows nothing of the drive); a polynomial
+    /// drift continues along its tangent at the origin (a curvature fitted on a short past
+    /// extrapolates wildly); a settling drift and the creep states' decays continue as
+    /// fitted. Samples before the
     /// first origin are the lead's own fit.
     pub fn forecast_on(
         &self,
@@ -45,6 +47,7 @@ impl Structure {
         let (cols, status) = self.columns(theta, &u[..n]);
         let own = self.record_coefs();
         let spline = self.coefs_where(|c| c.starts_with("drift_k"));
+        let quadratic = self.coefs_where(|c| c == "drift_a2").first().copied();
         let actuator: Vec<f64> = (0..n)
             .map(|k| {
                 cols.iter()
@@ -136,7 +139,12 @@ impl Structure {
             for (k, o) in out.iter_mut().enumerate().take(to).skip(from) {
                 let mut own_part = 0.0;
                 for ((&j, v), col) in idx.iter().zip(&b).zip(&sub) {
-                    if !is_spline(j) {
+                    if quadratic == Some(j) && k >= fit_to && fit_to >= 2 {
+                        // The quadratic drift term along its tangent at the last fitted
+                        // sample: its curvature, from a short past, is not extrapolated.
+                        let (a, slope) = (col[fit_to - 1], col[fit_to - 1] - col[fit_to - 2]);
+                        own_part += v * (a + slope * (k + 1 - fit_to) as f64);
+                    } else if !is_spline(j) {
                         own_part += v * cols[j][k];
                     } else if k < fit_to {
                         own_part += v * col[k];
