@@ -388,15 +388,22 @@ fn a_diagnosed_model_reproduces_its_validation_rmse() {
         &["--record", "validate"],
         0,
     );
+    // model.json holds the validation record's own parts fitted on all of it: simulate
+    // reproduces that reading of the record, not the prediction that judged.
+    let fitted = j["final"]["validate_fitted_rmse"].as_f64().unwrap();
+    assert_close(got, fitted, "diagnosed validation RMSE via simulate");
     let want = j["final"]["validate_rmse"].as_f64().unwrap();
-    assert_close(got, want, "diagnosed validation RMSE via simulate");
     let (train, _) = simulate_model(d, "diag/model.json", ("train.csv", COLS), &[], 0);
     assert_close(
         train,
         j["final"]["train_rmse"].as_f64().unwrap(),
         "diagnosed training RMSE via simulate",
     );
-    let (own, _) = residual_rmse(&d.join("diag/validate_predicted.csv"), 0);
+    // The predicted CSV holds the forecast that judged: from the lead's end on, its
+    // residual is the validation RMSE.
+    let v = &j["validation_judging"][0];
+    let lead = v["samples"].as_u64().unwrap() - v["scored"].as_u64().unwrap();
+    let (own, _) = residual_rmse(&d.join("diag/validate_predicted.csv"), lead as usize);
     assert_close(own, want, "diagnose's validate_predicted.csv");
 }
 

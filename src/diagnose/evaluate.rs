@@ -190,6 +190,9 @@ pub(super) struct Evaluated {
     pub(super) ev: Vec<f64>,
     /// Parameters fitted on the validation records' own samples (before the scored ones).
     pub(super) fitted_v: usize,
+    /// The validation RMSE with the records' own parts fitted on all of them (described,
+    /// not judged).
+    pub(super) fitted_rmse_v: f64,
     pub(super) validate_rmse: f64,
     /// Evidence on the validation record: `N ln(SSE/N)` over the scored samples. Nothing
     /// is charged for parameters because none was fitted on them: a per-record part must
@@ -230,6 +233,7 @@ pub(super) fn evaluate(mut f: Fitted, d: &Data, opts: &Options) -> Evaluated {
         coef_v,
         ev,
         fitted_v,
+        fitted_rmse_v: residual::rms(&described),
     }
 }
 
@@ -325,6 +329,7 @@ pub(super) fn summary(e: &Evaluated, d: &Data, boot: &[f64], seed: u64) -> Model
         model: label.clone(),
         train_rmse: e.fitted.rmse(d.ut.len()),
         validate_rmse: e.validate_rmse,
+        validate_fitted_rmse: e.fitted_rmse_v,
         validate_band: rmse_band(ev, seed, &label),
         bic: bic(&e.fitted, d.ut.len()),
         params: named(&e.fitted),

@@ -186,7 +186,11 @@ impl Options {
 pub struct ModelSummary {
     pub model: String,
     pub train_rmse: f64,
+    /// Validation RMSE on the scored samples, all predicted ([`super::forecast`]).
     pub validate_rmse: f64,
+    /// Validation RMSE with the record's own parts fitted on all of it, as `model.json`
+    /// holds them (what `simulate --record` reproduces): a fit, never a judge.
+    pub validate_fitted_rmse: f64,
     /// 95 % band of the validation RMSE (moving-block bootstrap).
     pub validate_band: [f64; 2],
     pub bic: f64,
