@@ -209,12 +209,12 @@ fn mean(v: &[f64]) -> f64 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::base::standard_normal;
 
     /// Steps between random levels every `hold` seconds, sampled every `dt`.
-    fn staircase(levels: &[f64], hold: f64, dt: f64) -> Vec<f64> {
+    pub(in crate::diagnose) fn staircase(levels: &[f64], hold: f64, dt: f64) -> Vec<f64> {
         let per = (hold / dt).round() as usize;
         levels
             .iter()

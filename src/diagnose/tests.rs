@@ -3,6 +3,7 @@ use super::judge::*;
 use super::propose::*;
 use super::refit::{self, Fitted};
 use super::residual;
+use super::steps::tests::staircase;
 use super::*;
 use crate::base::{TrialSeed, standard_normal};
 use crate::physics::bouc_wen::{BoucWenParams, BoucWenState};
@@ -1046,16 +1047,6 @@ fn a_mode_is_a_resonance_only_with_a_resolved_peak() {
     let plain = Structure::new(&[], Some(1.0), Context::from_training(&[0.0, 1.0], dt));
     let f = Fitted::at(&plain, theta_with(&plain, &[]), &[0.0, 1.0], &[0.0, 1.0], 0);
     assert_eq!(resonant(&f, dt), None);
-}
-
-/// A staircase between `levels`, each held `hold` s, sampled every `dt` (the creep
-/// experiment's drive: steps, then holds).
-fn staircase(levels: &[f64], hold: f64, dt: f64) -> Vec<f64> {
-    let per = (hold / dt).round() as usize;
-    levels
-        .iter()
-        .flat_map(|&l| std::iter::repeat_n(l, per))
-        .collect()
 }
 
 /// The judging rule (issue 50): a spline drift refitted on the whole validation record

@@ -249,42 +249,39 @@ mod tests {
         }
     }
 
+    /// The largest |a - b| over the shorter of the two.
+    fn largest_gap(a: &[f64], b: &[f64]) -> f64 {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max)
+    }
+
     #[test]
     fn an_offset_is_carried_and_a_ramp_extrapolated_but_a_spline_only_held() {
         let (u, ..) = slow_plain_record();
         let n = u.len();
         let origins = [n / 5, 2 * n / 5, 3 * n / 5, 4 * n / 5];
         let ramp = |k: usize| 0.03 * k as f64 / n as f64;
+        // The record with an offset and the ramp, forecast by a drift of `form`.
+        let ramped = |form: Form| {
+            let (st, th, coef, u, y0) = drifting(form);
+            let y: Vec<f64> = y0
+                .iter()
+                .enumerate()
+                .map(|(k, v)| v + 0.01 + ramp(k))
+                .collect();
+            (st.forecast_on(&th, &coef, &u, &y, &origins), y)
+        };
         // The polynomial drift continues the ramp: the forecast is exact.
-        let (st, th, coef, u, y0) = drifting(Form::Polynomial);
-        let y: Vec<f64> = y0
-            .iter()
-            .enumerate()
-            .map(|(k, v)| v + 0.01 + ramp(k))
-            .collect();
-        let f = st.forecast_on(&th, &coef, &u, &y, &origins);
-        let worst = f
-            .out
-            .iter()
-            .zip(&y)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let (f, y) = ramped(Form::Polynomial);
+        let worst = largest_gap(&f.out, &y);
         assert!(worst < 1e-9, "{worst}");
         assert_eq!(f.fitted, 3);
         // A spline fitted on the lead holds its last value: it misses the ramp's rise
         // over each block, by up to a block's rise.
-        let (st, th, coef, u, y0) = drifting(Form::Spline);
-        let y: Vec<f64> = y0
-            .iter()
-            .enumerate()
-            .map(|(k, v)| v + 0.01 + ramp(k))
-            .collect();
-        let f = st.forecast_on(&th, &coef, &u, &y, &origins);
-        let lead = f.out[..n / 5]
-            .iter()
-            .zip(&y)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let (f, y) = ramped(Form::Spline);
+        let lead = largest_gap(&f.out[..n / 5], &y);
         assert!(lead < 1e-9, "the lead is fitted: {lead}");
         let block = ramp(n / 5);
         for k in [n / 5 + 10, n - 1] {
@@ -298,12 +295,7 @@ mod tests {
         let (u, _, plain, theta, y0) = slow_plain_record();
         let y: Vec<f64> = y0.iter().map(|v| v - 0.2).collect();
         let f = plain.forecast_on(&theta, &[0.15, 0.0, 0.05], &u, &y, &origins);
-        let worst = f
-            .out
-            .iter()
-            .zip(&y)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let worst = largest_gap(&f.out, &y);
         assert!(worst < 1e-9, "{worst}");
     }
 }
