@@ -13,7 +13,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::ops::Range;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// Training and validation data in the form the fits use.
 pub(super) struct Data {
@@ -30,6 +30,8 @@ pub(super) struct Data {
     /// The validation records (samples, interval) when there are several, concatenated in
     /// `uv`, `yv`.
     pub(super) validation_parts: Option<Vec<(usize, f64)>>,
+    /// [`Self::scored_rows`], found on first use (after `validation_parts` is set).
+    scored_rows: OnceLock<Vec<Range<usize>>>,
 }
 
 impl Data {
@@ -52,6 +54,7 @@ impl Data {
             scope,
             dv: dt,
             validation_parts: None,
+            scored_rows: OnceLock::new(),
         }
     }
 
@@ -76,16 +79,20 @@ impl Data {
         (f, theta, used, out, coef)
     }
 
-    /// `f`'s output on the validation record(s) with the records' own parts fitted on all
-    /// of their samples (a periodic record over two periods, the second returned): the
+    /// `f`'s output on the validation record(s) (recorded output `yv`) with the records'
+    /// own parts fitted on all of their samples (a periodic record over two periods, the second returned): the
     /// model's own reading of the records, which the bootstrap adds noise to. Not a
     /// prediction, so it never judges.
-    pub(super) fn validation_simulated(&self, f: &Fitted, seed: u64) -> (Vec<f64>, u64) {
-        let twice = |v: &[f64]| -> Vec<f64> { v.iter().chain(v).copied().collect() };
+    pub(super) fn validation_simulated(
+        &self,
+        f: &Fitted,
+        yv: &[f64],
+        seed: u64,
+    ) -> (Vec<f64>, u64) {
         let (u, y) = if self.periodic {
-            (twice(&self.uv), twice(&self.yv))
+            (forecast::two_periods(&self.uv), forecast::two_periods(yv))
         } else {
-            (self.uv.clone(), self.yv.clone())
+            (self.uv.clone(), yv.to_vec())
         };
         let (_, _, used, out, _) = self.validation_fit(f, &u, &y, seed);
         (out[out.len() - self.uv.len()..].to_vec(), used)
@@ -99,25 +106,28 @@ impl Data {
     }
 
     /// The rows of the concatenated validation records that judge ([`forecast::scored`] of
-    /// each): no parameter was fitted on them.
-    pub(super) fn scored_rows(&self) -> Vec<Range<usize>> {
-        let mut at = 0;
-        self.parts()
-            .iter()
-            .map(|&(n, _)| {
-                let r = forecast::scored(&self.uv[at..at + n]);
-                let rows = at + r.start..at + r.end;
-                at += n;
-                rows
-            })
-            .collect()
+    /// each): no parameter was fitted on them. They depend on the records alone, so they
+    /// are found once, not on every evaluation.
+    fn scored_rows(&self) -> &[Range<usize>] {
+        self.scored_rows.get_or_init(|| {
+            let mut at = 0;
+            self.parts()
+                .iter()
+                .map(|&(n, _)| {
+                    let r = forecast::scored(&self.uv[at..at + n]);
+                    let rows = at + r.start..at + r.end;
+                    at += n;
+                    rows
+                })
+                .collect()
+        })
     }
 
     /// The scored rows ([`Self::scored_rows`]) of a vector over the validation records.
     pub(super) fn scored(&self, v: &[f64]) -> Vec<f64> {
         self.scored_rows()
-            .into_iter()
-            .flat_map(|r| v[r].iter().copied())
+            .iter()
+            .flat_map(|r| v[r.clone()].iter().copied())
             .collect()
     }
 
@@ -205,7 +215,7 @@ pub(super) struct Evaluated {
 pub(super) fn evaluate(mut f: Fitted, d: &Data, opts: &Options) -> Evaluated {
     let (out_t, _) = f.structure.simulate(&f.theta, &f.linear.coef, &d.ut);
     let (out_v, used, coef_v, fitted_v) = d.validation_output(&f, &d.yv, opts.seed);
-    let (described_out, described_used) = d.validation_simulated(&f, opts.seed);
+    let (described_out, described_used) = d.validation_simulated(&f, &d.yv, opts.seed);
     f.evaluations += used + described_used;
     let full: Vec<f64> = d.yv.iter().zip(&out_v).map(|(a, b)| a - b).collect();
     let ev = d.scored(&full);
@@ -351,7 +361,7 @@ pub(super) fn bootstrap_scores(
 ) -> (Vec<f64>, u64) {
     let st = &base.structure;
     let (mt, _) = st.simulate(&base.theta, &base.linear.coef, &d.ut);
-    let (mv, _) = d.validation_simulated(base, opts.seed);
+    let (mv, _) = d.validation_simulated(base, &d.yv, opts.seed);
     let runs: Vec<(f64, u64)> = (0..opts.bootstrap)
         .into_par_iter()
         .with_max_len(1)
@@ -382,15 +392,8 @@ pub(super) fn bootstrap_scores(
                 },
                 opts.seed ^ (0xb00 + b as u64),
             );
-            let (u, y) = if d.periodic {
-                let twice = |v: &[f64]| -> Vec<f64> { v.iter().chain(v).copied().collect() };
-                (twice(&d.uv), twice(&yv))
-            } else {
-                (d.uv.clone(), yv.clone())
-            };
-            let (_, _, used, ov, _) = d.validation_fit(&refit, &u, &y, opts.seed);
-            let ov = &ov[ov.len() - d.uv.len()..];
-            let ev: Vec<f64> = yv.iter().zip(ov).map(|(a, b)| a - b).collect();
+            let (ov, used) = d.validation_simulated(&refit, &yv, opts.seed);
+            let ev: Vec<f64> = yv.iter().zip(&ov).map(|(a, b)| a - b).collect();
             let score = residual::score(&residual::battery(&d.uv, &ev, opts.lags, opts.alpha));
             (score, refit.evaluations + used)
         })

@@ -68,6 +68,12 @@ pub fn scored(u: &[f64]) -> Range<usize> {
     origins(u)[0].min(u.len())..u.len()
 }
 
+/// A periodic record's period `v` twice: simulated over two periods, the second is the
+/// steady state.
+pub fn two_periods(v: &[f64]) -> Vec<f64> {
+    v.iter().chain(v).copied().collect()
+}
+
 /// One record predicted: the output on its samples, the coefficients of the last fit, the
 /// evaluations of the state search, and how many parameters were fitted on its own
 /// samples (before the origins).
@@ -95,8 +101,7 @@ pub fn forecast_record(
     let n = u.len().min(y.len());
     let lead = origins(&u[..n])[0];
     let (u2, y2, at): (Vec<f64>, Vec<f64>, Vec<usize>) = if periodic {
-        let twice = |v: &[f64]| -> Vec<f64> { v[..n].iter().chain(&v[..n]).copied().collect() };
-        (twice(u), twice(y), vec![lead])
+        (two_periods(&u[..n]), two_periods(&y[..n]), vec![lead])
     } else {
         (u[..n].to_vec(), y[..n].to_vec(), origins(&u[..n]))
     };
