@@ -28,18 +28,21 @@ pub struct DiagnoseArgs {
     /// continued, so it checks the fit on unseen samples, not on an unseen kind of input.
     #[arg(long, conflicts_with = "validate_periodic")]
     pub holdout: Option<f64>,
-    /// Model family: bouc-wen (n fitted, kept only if BIC says so), bouc-wen-n1 (n = 1),
-    /// pi (a plain Prandtl-Ishlinskii core: --pi-operators plays with fixed thresholds,
-    /// their weights fitted by least squares like Bouc-Wen's gains; delay, input-lag and
-    /// saturation act on its drive, creep, dynamics and offset-drift after it), or preisach
-    /// (a discretised Preisach core the same way: --preisach-levels levels over the training
-    /// input's range, one relay weight per cell of the threshold plane). With pi or
-    /// preisach, asymmetry and rate-dependence are not searched: the PI model has its own
-    /// asymmetric and rate-dependent forms, the Preisach plane makes any asymmetric loop and
-    /// is rate-independent, so a second version would duplicate them; nor is the feedback
-    /// placement of dynamics. Default: bouc-wen; bouc-wen-n1 for --proof (the twin's n is
-    /// 1; ten times faster).
-    #[arg(long, value_parser = ["bouc-wen", "bouc-wen-n1", "pi", "preisach"])]
+    /// Model family: auto (the core chosen by the data: Bouc-Wen first; when its exponent
+    /// sits at a bound or its final model predicts above the noise floor, the pi and
+    /// preisach cores are searched too, and one that predicts the validation records below
+    /// Bouc-Wen's band is kept: "the loop is not Bouc-Wen's"), bouc-wen (n fitted, kept
+    /// only if BIC says so), bouc-wen-n1 (n = 1), pi (a Prandtl-Ishlinskii core:
+    /// --pi-operators plays with fixed thresholds, their weights fitted by least squares
+    /// like Bouc-Wen's gains; delay, input-lag, saturation and asymmetry act on its drive,
+    /// rate-dependence scales its weights or thresholds with the rate, creep, dynamics and
+    /// offset-drift act after it), or preisach (a discretised Preisach core the same way:
+    /// --preisach-levels levels over the training input's range, one relay weight per cell
+    /// of the threshold plane; its plane makes any asymmetric loop, so asymmetry is not
+    /// searched, and its rate-dependence scales the weights). The operator cores take no
+    /// feedback placement of dynamics. Default: auto; bouc-wen-n1 for --proof (the twin's n
+    /// is 1; ten times faster).
+    #[arg(long, value_parser = ["auto", "bouc-wen", "bouc-wen-n1", "pi", "preisach"])]
     pub model: Option<String>,
     /// Plays of the pi core (thresholds uniform over the training input's half-range).
     #[arg(long, default_value_t = 10,
@@ -154,7 +157,7 @@ fn diagnose(a: DiagnoseArgs) -> Result<()> {
     let model = a
         .model
         .clone()
-        .unwrap_or_else(|| if a.proof { "bouc-wen-n1" } else { "bouc-wen" }.to_string());
+        .unwrap_or_else(|| if a.proof { "bouc-wen-n1" } else { "auto" }.to_string());
     let choose_hold = a.hold == "auto";
     let hold = if choose_hold {
         Hold::Zoh

@@ -28,6 +28,7 @@
 //!    later rounds, and after every acceptance an effect the model no longer needs is
 //!    dropped (backward step) and the search goes on.
 
+pub mod core_choice;
 pub mod coupling;
 pub mod forecast;
 pub mod plausible;
@@ -80,15 +81,23 @@ pub fn diagnose_with_tests(
     let started = std::time::Instant::now();
     let spin = crate::pipeline::runner::spinner(opts.progress);
     spin.set_message("fitting the plain model");
-    let records = Records::new(train, validate, opts)?;
-    let mut search = Search::baseline(records, started, spin);
-    loop {
-        while search.forward_round() {
-            search.backward();
-        }
-        if !search.exchange_round() {
-            break;
-        }
+    let searched = |opts: &Options| -> Result<Search> {
+        let records = Records::new(train, validate, opts)?;
+        Ok(Search::baseline(records, started, spin.clone()).run())
+    };
+    let first = searched(opts)?;
+    if !opts.chooses_core() {
+        return Ok(first.diagnosis(tests));
     }
-    Ok(search.finish().diagnosis(tests))
+    let (kept, choice, spent) = core_choice::choose(first, opts, |model| {
+        searched(&Options {
+            model: model.into(),
+            ..opts.clone()
+        })
+    })?;
+    let mut d = kept.diagnosis(tests);
+    d.model = format!("auto: {}", choice.chosen);
+    d.evaluations += spent;
+    d.core_choice = Some(choice);
+    Ok(d)
 }

@@ -113,13 +113,19 @@ impl Options {
     /// The exponent the model pins, or an error for an unknown model.
     pub fn fixed_n(&self) -> Result<Option<f64>> {
         match self.model.as_str() {
-            "bouc-wen" => Ok(None),
+            "bouc-wen" | "auto" => Ok(None),
             // The PI core has no exponent; pinning it keeps the exponent search off.
             "bouc-wen-n1" | "pi" | "preisach" => Ok(Some(1.0)),
             m => Err(Error::Input(format!(
-                "--model {m}: unknown; valid: bouc-wen, bouc-wen-n1, pi, preisach"
+                "--model {m}: unknown; valid: auto, bouc-wen, bouc-wen-n1, pi, preisach"
             ))),
         }
+    }
+
+    /// Whether the data choose the core ([`super::core_choice`]): Bouc-Wen first, the
+    /// operator cores searched too when the data reject it.
+    pub fn chooses_core(&self) -> bool {
+        self.model == "auto"
     }
 
     /// Whether the core is linear in its weights (a Prandtl-Ishlinskii or Preisach model).
@@ -334,6 +340,9 @@ pub struct Diagnosis {
     /// Series for the figures (not serialised).
     #[serde(skip)]
     pub series: Series,
+    /// `--model auto`: how the data chose the hysteresis core ([`super::core_choice`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub core_choice: Option<super::core_choice::CoreChoice>,
     /// The recording that would settle the first tie the final model holds (`--suggest`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub next_experiment: Option<suggest::NextExperiment>,

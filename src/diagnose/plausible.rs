@@ -260,9 +260,12 @@ fn at_bound(s: &ParamSpec, x: f64) -> Option<Flag> {
     // Where the fast creep element's range meets the slow one's: both elements want the
     // same time scale, a partition of the model's own, not a limit of the physics.
     let room = AT_BOUND_SHARE * (s.upper - s.lower);
+    // The rate's memory at its shortest is the rate without memory, the rate-dependent PI
+    // of the literature (weights growing with |du/dt|): a limit of the form, not a misfit.
     match s.name {
         "creep_log10_tau_s" if s.upper - x <= room => return None,
         "creep_log10_tau2_s" if x - s.lower <= room => return None,
+        "rate_log10_tau_s" if x - s.lower <= room => return None,
         _ => {}
     }
     let room = AT_BOUND_SHARE * (s.upper - s.lower);

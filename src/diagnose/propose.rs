@@ -67,7 +67,7 @@ pub(super) fn candidate_pool(parent: &Structure, opts: &Options) -> Vec<Proposal
             // won alone may lose once another effect takes its share (a two-element creep
             // beside a rate-dependence, where the creep is logarithmic over decades).
             if e != Effect::Dynamics {
-                for &f in e.forms() {
+                for &f in e.forms_on(parent.core_kind()) {
                     if parent.form(e) != Some(f)
                         && !(here == Placement::Feedback && f == Form::Direction)
                     {
@@ -83,7 +83,7 @@ pub(super) fn candidate_pool(parent: &Structure, opts: &Options) -> Vec<Proposal
         if here == Placement::Feedback && e == Effect::RateDependence {
             continue;
         }
-        for &f in e.forms() {
+        for &f in e.forms_on(parent.core_kind()) {
             if here == Placement::Feedback && f == Form::Direction {
                 continue;
             }
@@ -493,7 +493,7 @@ pub(super) fn exchanges(
         .flat_map(|(i, &(_, partner))| {
             let forms: Vec<Form> = match st.form(partner) {
                 Some(f) => vec![f],
-                None => partner.forms().to_vec(),
+                None => partner.forms_on(st.core_kind()).to_vec(),
             };
             forms.into_iter().map(move |f| {
                 (

@@ -60,6 +60,21 @@ pub fn text(d: &Diagnosis) -> String {
         }
     );
     let b = &d.baseline;
+    if let Some(c) = &d.core_choice {
+        let _ = writeln!(s, "core: {}", c.finding);
+        for t in c.trials.iter().filter(|_| c.trials.len() > 1) {
+            let _ = writeln!(
+                s,
+                "  {} {:<9} {:<48} validation RMSE {}{u} (band {}-{})",
+                if t.chosen { "*" } else { " " },
+                t.core,
+                t.model,
+                f(t.validate_rmse),
+                f(t.validate_band[0]),
+                f(t.validate_band[1])
+            );
+        }
+    }
     let _ = writeln!(s, "exponent: {}", d.exponent);
     for na in &d.not_applicable {
         let _ = writeln!(s, "not searched: {na}");

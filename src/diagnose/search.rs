@@ -1126,10 +1126,52 @@ impl Search {
         ));
     }
 
+    /// The rounds from the baseline until nothing more is named or exchanged, then
+    /// [`Self::finish`].
+    pub(super) fn run(mut self) -> Search {
+        loop {
+            while self.forward_round() {
+                self.backward();
+            }
+            if !self.exchange_round() {
+                break;
+            }
+        }
+        self.finish()
+    }
+
+    /// The model the search has reached, as the report shows it.
+    pub(super) fn final_summary(&self) -> &ModelSummary {
+        &self.current_summary
+    }
+
+    /// The model reached predicts the validation records to the noise floor (where the
+    /// floor has settled): no name could be earned on it.
+    pub(super) fn at_floor(&self) -> bool {
+        self.rec.no_room(self.current.validate_rmse, MIN_EXPLAINED)
+    }
+
+    pub(super) fn noise(&self) -> f64 {
+        self.rec.noise
+    }
+
+    pub(super) fn unit(&self) -> &str {
+        &self.rec.unit
+    }
+
+    pub(super) fn evaluations(&self) -> u64 {
+        self.evaluations
+    }
+
+    /// Shows `what` on the progress line.
+    pub(super) fn say(&self, what: &str) {
+        self.spin.set_message(what.to_string());
+    }
+
     /// Once the search ends: the exchanges' notes joined to why it stopped, and with
     /// `--hold auto` the hold chosen for a model with the hysteresis inside the feedback
     /// ([`choose_hold`]).
-    pub(super) fn finish(mut self) -> Search {
+    fn finish(mut self) -> Search {
         self.search_stop.push_str(&self.exchange_note);
         let opts = &self.rec.opts;
         if opts.choose_hold && self.current.fitted.structure.placement() == Placement::Feedback {
@@ -1218,6 +1260,7 @@ impl Search {
             wall_s: self.started.elapsed().as_secs_f64(),
             series,
             next_experiment: None,
+            core_choice: None,
             couplings: Vec::new(),
             model_file: model,
             columns: None,

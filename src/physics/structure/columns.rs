@@ -35,13 +35,14 @@ impl Core {
         }
     }
 
-    /// Applies drive `v`; `out` gets one output per operator (relays in
-    /// [`PreisachGrid::index`] order).
-    fn step(&mut self, v: f64, out: &mut [f64]) {
+    /// Applies drive `v` with the plays' thresholds scaled by `width` (1: the
+    /// rate-independent core; relays take no width); `out` gets one output per operator
+    /// (relays in [`PreisachGrid::index`] order).
+    fn step(&mut self, v: f64, width: f64, out: &mut [f64]) {
         match self {
             Core::Plays { r, z } => {
                 for ((zi, &ri), o) in z.iter_mut().zip(r.iter()).zip(out.iter_mut()) {
-                    *zi = play(ri, *zi, v);
+                    *zi = play(ri * width, *zi, v);
                     *o = *zi;
                 }
             }
@@ -135,16 +136,48 @@ impl Structure {
             }
             drive(x)
         });
+        // The rate's memory starts at the rate the record starts with: a record cut from a
+        // running excitation starts in motion, and memory at rest would add a start-up
+        // transient of the rate time constant that a drift or creep then soaks up.
+        let rate0 = (u.get(1).map_or(v0, |&x| drive(x)) - v0).abs() / dt;
+        if let Some(r) = &mut rate {
+            r.settle(rate0);
+        }
         if let Some(pi) = self.ctx.pi {
             let mut core = Core::new(&pi);
-            let mut z = vec![0.0; pi.columns()];
+            // The asymmetric PI's quadratic rides as one more operator output.
+            let quadratic = self.pi_quadratic();
+            let mut z = vec![0.0; self.pi_operators()];
+            let ops = pi.columns();
+            let u_ref = ctx.u_ref;
             let mut cols = vec![vec![0.0; n]; z.len()];
             let mut after: Vec<After> = Vec::with_capacity(z.len());
+            let mut v_prev = v0;
             for k in 0..n {
                 let v = drives.next().unwrap_or(v0);
                 let mut finite = finite_shape;
-                core.step(v, &mut z);
+                // The rate-dependent PI: weights (gain) or thresholds (width) scaled by
+                // 1 + ρ·rate, the rate low-passed as in the Bouc-Wen core.
+                let rr = rate.as_mut().map_or(0.0, |r| {
+                    r.step(if k == 0 {
+                        rate0
+                    } else {
+                        (v - v_prev).abs() / dt
+                    }) / ctx.rate_ref
+                });
+                v_prev = v;
+                let scale = (1.0 + sh.rho * rr).max(1e-6);
+                let (gain, width) = if sh.rate_gain {
+                    (scale, 1.0)
+                } else {
+                    (1.0, scale)
+                };
+                core.step(v, width, &mut z[..ops]);
+                if quadratic {
+                    z[ops] = v * v / u_ref;
+                }
                 for (i, &zi) in z.iter().enumerate() {
+                    let zi = gain * zi;
                     if k == 0 {
                         after.push(blocks.start(zi, hold, no_lag));
                     }
@@ -162,13 +195,6 @@ impl Structure {
             }
             cols.extend(self.state_columns(&sh, n));
             return (cols, status);
-        }
-        // The rate's memory starts at the rate the record starts with: a record cut from a
-        // running excitation starts in motion, and memory at rest would add a start-up
-        // transient of the rate time constant that a drift or creep then soaks up.
-        let rate0 = (u.get(1).map_or(v0, |&x| drive(x)) - v0).abs() / dt;
-        if let Some(r) = &mut rate {
-            r.settle(rate0);
         }
         // The hysteretic state at the first sample; the linear blocks after it at rest there.
         let mut g = sh.g0.clamp(-1.0, 1.0) * sh.g0_scale(ctx.u_ref);

@@ -77,37 +77,28 @@ impl Effect {
         }
     }
 
-    /// Why the effect is not searched on a Prandtl-Ishlinskii core (`None`: it is). The
-    /// PI model has its own forms of these two, linear in their weights (the asymmetric
-    /// and the rate-dependent PI, [`crate::physics::prandtl_ishlinskii::PiForm`]): a
-    /// Bouc-Wen-style extension on top would be a second version of the same physics.
-    pub fn not_for_pi(self) -> Option<&'static str> {
-        match self {
-            Effect::Asymmetry => Some(
-                "the PI model's own asymmetric form (a polynomial in the input) is its \
-                 asymmetry; fit it with the PI fitting objectives",
-            ),
-            Effect::RateDependence => Some(
-                "the PI model's own rate-dependent form (weights growing with |du/dt|) is \
-                 its rate dependence; fit it with the PI fitting objectives",
-            ),
-            _ => None,
+    /// The forms the effect is searched in on a core of `kind` (`None`: Bouc-Wen), the
+    /// first the default. On the operator cores an asymmetry is the drive warped before the
+    /// operators (`x + q x²/u_ref`: the generalised PI's input function, whose linear play
+    /// carries the asymmetric PI's quadratic term); the direction form acts on Bouc-Wen's
+    /// slope, which plays do not have. The rate-dependent PI scales its weights (gain) or
+    /// its thresholds (width) with the low-passed rate; a Preisach plane, defined without a
+    /// rate, takes the weights' form only.
+    pub fn forms_on(self, kind: Option<super::CoreKind>) -> &'static [Form] {
+        use super::CoreKind::{Plays, Relays};
+        match (kind, self) {
+            (Some(Plays), Effect::Asymmetry) => &[Form::Even],
+            (Some(Relays), Effect::RateDependence) => &[Form::Gain],
+            _ => self.forms(),
         }
     }
 
-    /// Why the effect is not searched on a core of `kind` (`None`: it is). The Preisach
-    /// model drops the same two as the PI model: its weight plane already shapes any
-    /// asymmetric loop, and it is rate-independent by definition.
+    /// Why the effect is not searched on a core of `kind` (`None`: it is).
     pub fn not_for_core(self, kind: super::CoreKind) -> Option<&'static str> {
         match (kind, self) {
-            (super::CoreKind::Plays, _) => self.not_for_pi(),
             (super::CoreKind::Relays, Effect::Asymmetry) => Some(
                 "the Preisach weights over the (up, down) threshold plane already make any \
                  asymmetric loop; a Bouc-Wen-style asymmetry on top would duplicate it",
-            ),
-            (super::CoreKind::Relays, Effect::RateDependence) => Some(
-                "the Preisach model is rate-independent by definition; a rate-dependent \
-                 Preisach form is not part of this core",
             ),
             _ => None,
         }

@@ -151,13 +151,15 @@ impl Structure {
         ctx: Context,
         placement: Placement,
     ) -> Structure {
+        let kind = ctx.pi.map(|p| p.kind);
         let mut parts: Vec<(Effect, Form)> = parts
             .iter()
             .map(|&(e, f)| {
-                if e.forms().contains(&f) {
+                let forms = e.forms_on(kind);
+                if forms.contains(&f) {
                     (e, f)
                 } else {
-                    (e, e.forms()[0])
+                    (e, forms[0])
                 }
             })
             .collect();
@@ -172,8 +174,8 @@ impl Structure {
                 }
             }
         }
-        // A PI or Preisach core has its own asymmetry and rate (in)dependence
-        // ([`Effect::not_for_core`]) and no restoring-force form.
+        // A Preisach core shapes any asymmetric loop itself ([`Effect::not_for_core`]); an
+        // operator core has no restoring-force form.
         let placement = if let Some(p) = ctx.pi {
             parts.retain(|(e, _)| e.not_for_core(p.kind).is_none());
             Placement::After
@@ -270,6 +272,8 @@ impl Structure {
                 (Effect::Asymmetry, Form::Direction) => {
                     specs.push(spec("asym_dir", -0.9, 0.9, 0.0, x))
                 }
+                // The asymmetric PI's quadratic is a linear column: no shape parameter.
+                (Effect::Asymmetry, _) if ctx.pi.is_some() => {}
                 (Effect::Asymmetry, _) => specs.push(spec("asym_q", -0.3, 0.3, 0.0, x)),
                 (Effect::RateDependence, _) => {
                     specs.push(spec("rate_rho", 0.0, 2.0, 0.0, x));
@@ -416,8 +420,12 @@ impl Structure {
                     Some(CoreKind::Relays) => &PREISACH_WEIGHTS,
                     _ => &PI_WEIGHTS,
                 };
+                let ops = m - usize::from(self.pi_quadratic());
                 let mut v = vec![names[0], "d0"];
-                v.extend(&names[1..m]);
+                v.extend(&names[1..ops]);
+                if self.pi_quadratic() {
+                    v.push("asymmetry_a2");
+                }
                 v
             }
             Placement::After => vec!["d_e", "d0", "alpha"],
@@ -457,9 +465,21 @@ impl Structure {
         v
     }
 
-    /// Operators of a PI or Preisach core, one linear column each (0 for Bouc-Wen).
+    /// The kind of the operator core (`None`: Bouc-Wen).
+    pub fn core_kind(&self) -> Option<CoreKind> {
+        self.ctx.pi.map(|p| p.kind)
+    }
+
+    /// The linear columns of a PI or Preisach core (0 for Bouc-Wen): one per operator,
+    /// and the asymmetric PI's quadratic ([`Self::pi_quadratic`]).
     pub fn pi_operators(&self) -> usize {
-        self.ctx.pi.map_or(0, |p| p.columns())
+        self.ctx.pi.map_or(0, |p| p.columns()) + usize::from(self.pi_quadratic())
+    }
+
+    /// A PI core's asymmetry: the asymmetric ("modified") PI's memoryless `a₂ v²/u_ref`
+    /// beside the plays, linear in its weight like them.
+    pub fn pi_quadratic(&self) -> bool {
+        self.core_kind() == Some(CoreKind::Plays) && self.has(Effect::Asymmetry)
     }
 
     /// Indices (in [`LinearFit::coef`]) of coefficients that belong to a record's own
@@ -705,6 +725,9 @@ impl Structure {
                         for (i, ri) in r.iter().enumerate() {
                             v.push((format!("w{i}"), w(i).unwrap_or(0.0)));
                             v.push((format!("r{i}"), *ri));
+                        }
+                        if self.pi_quadratic() {
+                            v.push(("asymmetry_a2".into(), w(r.len()).unwrap_or(0.0)));
                         }
                     }
                 }

@@ -1151,9 +1151,34 @@ fn a_pi_core_is_the_plain_pi_model_and_fits_its_weights() {
     for (a, b) in fit.coef.iter().zip(&coef) {
         assert!((a - b).abs() < 1e-8, "{:?} vs {coef:?}", fit.coef);
     }
-    // Effects the PI model has its own forms of are not added to it.
+    // With asymmetry the core is the asymmetric PI model (its quadratic `a₂ v²`, again
+    // computed by `PiModel`'s own code): one more linear column, weight `a₂ u_ref`.
     let st2 = st.extended(Effect::Asymmetry).extended(Effect::Creep);
-    assert_eq!(st2.effects(), &[Effect::Creep]);
+    assert_eq!(st2.effects(), &[Effect::Asymmetry, Effect::Creep]);
+    let sa = st.extended(Effect::Asymmetry);
+    assert_eq!(sa.pi_operators(), 7);
+    let asym = PiModel {
+        form: PiForm::Asymmetric,
+        poly: vec![0.3, 0.0],
+        ..pi.clone()
+    };
+    let theta_a: Vec<f64> = sa.specs().iter().map(|s| s.neutral).collect();
+    let mut coef_a = coef.clone();
+    coef_a.push(0.3 * sa.context().u_ref);
+    let (ya, status) = sa.simulate(&theta_a, &coef_a, &u);
+    assert_eq!(status, Status::Ok);
+    let worst_a = ya
+        .iter()
+        .zip(asym.simulate(&u, dt))
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(worst_a < 1e-9, "{worst_a}");
+    let named = sa.named_params(&theta_a, &coef_a);
+    assert!(
+        named
+            .iter()
+            .any(|(k, v)| k == "asymmetry_a2" && *v == coef_a[7])
+    );
 }
 
 /// A Preisach core without extensions is the Preisach model of its grid ([`Preisach`],
@@ -1201,12 +1226,14 @@ fn a_preisach_core_is_the_preisach_model_and_fits_its_records() {
     assert_eq!(get("mu[3,1]"), Some(weights[PreisachGrid::index(3, 1)]));
     assert_eq!(get("up[3,1]"), Some(t[3]));
     assert_eq!(get("down[3,1]"), Some(t[1]));
-    // The same extensions as a PI core are left out.
+    // Asymmetry is left out (the plane shapes any asymmetric loop); rate dependence is
+    // taken in its weights' form only.
     let st2 = st
         .extended(Effect::Asymmetry)
         .extended(Effect::RateDependence)
         .extended(Effect::Creep);
-    assert_eq!(st2.effects(), &[Effect::Creep]);
+    assert_eq!(st2.effects(), &[Effect::RateDependence, Effect::Creep]);
+    assert_eq!(st2.form(Effect::RateDependence), Some(Form::Gain));
 }
 
 /// The Preisach core's static weight names are the grid's own, and a structure file
