@@ -9,8 +9,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 model="${1:-bouc-wen}"
 dur="${DURATION:-20}"
-cargo build --release -q
-bin=./target/release/optbench
+[ -n "${BIN:-}" ] || cargo build --release -q
+bin=${BIN:-./target/release/optbench}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 twin="amp=off,mode=off,delay=0.001"

@@ -638,6 +638,57 @@ fn the_p885_stack_is_diagnosed_with_its_start_up_found_and_its_creep_flagged() {
     );
 }
 
+/// The core chosen by the data on a real stack (P-885, first second left out, only a delay
+/// offered to keep the test short): the Bouc-Wen search with its exponent ends well above
+/// the noise floor, the operator cores are searched, and the PI core, whose plays shape the
+/// stack's minor loops, predicts the ramped test record below Bouc-Wen's band: the first
+/// finding is that the loop is not Bouc-Wen's, and the search goes on with the PI core.
+#[test]
+fn the_p885_loop_is_given_to_the_pi_core_by_the_data() {
+    let Some(dir) = data_set("pea_p885_dbo") else {
+        return;
+    };
+    let train = dir.join("dbo_identification_1Hz_sine.csv");
+    let validate = dir.join("dbo_test_ramped_sine_with_holds.csv");
+    let tmp = tempfile::tempdir().unwrap();
+    let (text, json) = diagnose_command(
+        &[
+            "--train",
+            train.to_str().unwrap(),
+            "--validate",
+            validate.to_str().unwrap(),
+            "--columns",
+            "t_s,u_V,y_um",
+            "--trim-start",
+            "1",
+            "--effects",
+            "delay",
+        ],
+        tmp.path(),
+        "auto",
+    );
+    let c = &json["core_choice"];
+    assert_eq!(c["chosen"], "pi", "{text}");
+    assert!(text.contains("core: the loop is not Bouc-Wen's"), "{text}");
+    let trials = c["trials"].as_array().unwrap();
+    assert_eq!(trials.len(), 3, "{text}");
+    assert_eq!(trials[0]["core"], "bouc-wen");
+    let band = trials[0]["validate_band"][0].as_f64().unwrap();
+    let kept = json["final"]["validate_rmse"].as_f64().unwrap();
+    assert!(kept < band, "{kept} against Bouc-Wen's band from {band}");
+    assert!(
+        json["final"]["model"].as_str().unwrap().starts_with("pi"),
+        "{text}"
+    );
+    assert_eq!(json["model"], "auto: pi");
+    // The model file holds the PI core: what `simulate --model` and `invert` read.
+    let model = read_json(&tmp.path().join("auto/model.json"));
+    assert_eq!(
+        model["structure"]["context"]["pi"]["kind"], "plays",
+        "{model}"
+    );
+}
+
 /// The Bouc-Wen benchmark (`$OPTBENCH_DATA/boucwen-benchmark`) in small, as a user without
 /// knowledge of it would run it (`scripts/docsgen/boucwen.py --small` runs the same): the
 /// first 6000 training samples, the last 20 % of them held out for validation, n fitted,

@@ -340,6 +340,10 @@ pub struct Diagnosis {
     /// Series for the figures (not serialised).
     #[serde(skip)]
     pub series: Series,
+    /// With `--suggest`, when structure stays unexplained: the recording that would pin
+    /// what it depends on ([`suggest::for_unexplained`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub next_experiment_unexplained: Option<suggest::UnexplainedProbe>,
     /// `--model auto`: how the data chose the hysteresis core ([`super::core_choice`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub core_choice: Option<super::core_choice::CoreChoice>,

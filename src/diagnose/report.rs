@@ -294,6 +294,11 @@ pub fn text(d: &Diagnosis) -> String {
             let _ = writeln!(s, "{line}");
         }
     }
+    if let Some(x) = &d.next_experiment_unexplained {
+        for line in x.lines() {
+            let _ = writeln!(s, "{line}");
+        }
+    }
     for (name, e) in [
         ("baseline", &d.step_evidence.baseline),
         ("final model", &d.step_evidence.final_model),

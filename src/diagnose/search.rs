@@ -1204,6 +1204,10 @@ impl Search {
         } else {
             None
         };
+        let unexplained_probe = match (&outside_vocabulary, self.rec.opts.suggest) {
+            (Some(ov), true) => self.unexplained_probe(ov),
+            _ => None,
+        };
         let step_evidence = {
             let d = &self.rec.d;
             let on = |out: &[f64]| {
@@ -1260,6 +1264,7 @@ impl Search {
             wall_s: self.started.elapsed().as_secs_f64(),
             series,
             next_experiment: None,
+            next_experiment_unexplained: unexplained_probe,
             core_choice: None,
             couplings: Vec::new(),
             model_file: model,
@@ -1330,6 +1335,26 @@ impl Search {
             })
             .collect();
         unexplained::characterise(&train, &parts, self.rec.noise, self.rec.opts.seed)
+    }
+
+    /// The recording that would pin what `ov` leaves unexplained ([`suggest::for_unexplained`]).
+    fn unexplained_probe(
+        &self,
+        ov: &unexplained::OutsideVocabulary,
+    ) -> Option<suggest::UnexplainedProbe> {
+        let (d, c) = (&self.rec.d, &self.current);
+        let et = training_residual(&d.yt, c);
+        let ev: Vec<f64> = d.yv.iter().zip(&c.out_v).map(|(y, m)| y - m).collect();
+        let train = unexplained::Record {
+            u: &d.ut,
+            e: &et,
+            y: &c.out_t,
+            dt: self.rec.dt,
+            scored: 0..et.len(),
+        };
+        // The first validation record (a spectrum needs one sampling interval).
+        let n = d.parts().first().map_or(ev.len(), |p| p.0);
+        suggest::for_unexplained(ov, &train, (&d.uv[..n], &ev[..n], self.rec.dv))
     }
 
     /// The records and the baseline's and final model's outputs, for the figures.

@@ -270,6 +270,215 @@ pub(super) fn design(
     }
 }
 
+/// What would pin down what stays unexplained (`next_experiment_unexplained` in
+/// `diagnosis.json`, with `--suggest`): not a tie between two readings but a dependence no
+/// effect describes, so the recording proposed is the one that spreads what the residual
+/// depends on widest and apart from the drive level (the level is what every core and
+/// effect already reads), or, for structure in a band only the validation drive excites,
+/// the chirp over that band.
+#[derive(Clone, Debug, Serialize)]
+pub struct UnexplainedProbe {
+    /// What the recording would settle.
+    pub question: String,
+    pub kind: String,
+    pub signal: String,
+    pub duration_s: f64,
+    pub dt: f64,
+    /// How far the excitation takes the feature beyond the training record (the span of both
+    /// over the training's; a band: its share of the drive's power there over the training
+    /// drive's), times the share of it apart from the drive level.
+    pub score: f64,
+    /// Every excitation tried with its score, best first.
+    pub tried: Vec<(String, f64)>,
+}
+
+/// The 2 % and 98 % quantiles of `x` (`None` when fewer than two finite values).
+fn span(x: &[f64]) -> Option<[f64; 2]> {
+    let mut s: Vec<f64> = x.iter().copied().filter(|v| v.is_finite()).collect();
+    if s.len() < 2 {
+        return None;
+    }
+    s.sort_by(f64::total_cmp);
+    let q = |p: f64| s[((s.len() - 1) as f64 * p).round() as usize];
+    Some([q(0.02), q(0.98)])
+}
+
+/// How far a probe's values `x` reach beyond the training's span `t`: the span of both over
+/// the training's (1: nothing new).
+fn reach(x: &[f64], t: [f64; 2]) -> f64 {
+    let Some(p) = span(x) else { return 0.0 };
+    (p[1].max(t[1]) - p[0].min(t[0])) / (t[1] - t[0]).max(1e-300)
+}
+
+/// Share of `x`'s variance a quadratic in the drive level `u` leaves (1: independent).
+fn apart_from_level(x: &[f64], u: &[f64]) -> f64 {
+    let cols: Vec<Vec<f64>> = vec![
+        vec![1.0; u.len()],
+        u.to_vec(),
+        u.iter().map(|v| v * v).collect(),
+    ];
+    let c = crate::base::lstsq::least_squares(&cols, x);
+    let fit: Vec<f64> = (0..x.len())
+        .map(|k| cols.iter().zip(&c).map(|(col, b)| col[k] * b).sum())
+        .collect();
+    let m = x.iter().sum::<f64>() / x.len().max(1) as f64;
+    let tot: f64 = x.iter().map(|v| (v - m) * (v - m)).sum();
+    let res: f64 = x.iter().zip(&fit).map(|(a, b)| (a - b) * (a - b)).sum();
+    if tot > 0.0 {
+        (res / tot).clamp(0.0, 1.0)
+    } else {
+        0.0
+    }
+}
+
+/// Share of the drive's power (input PSD) within `[f/√2, f·√2]`.
+fn band_share(u: &[f64], dt: f64, f: f64) -> f64 {
+    let sp = super::residual::spectra(u, u, dt, 1024);
+    let (mut inside, mut all) = (0.0, 0.0);
+    for (fr, p) in sp.freq.iter().zip(&sp.psd_e).skip(1) {
+        all += p;
+        if *fr >= f / std::f64::consts::SQRT_2 && *fr <= f * std::f64::consts::SQRT_2 {
+            inside += p;
+        }
+    }
+    if all > 0.0 { inside / all } else { 0.0 }
+}
+
+/// The recording that would pin what `ov` leaves unexplained: `train` the training record
+/// (its drive and residual), `(uv, ev, dv)` the validation drive, residual and interval.
+pub(super) fn for_unexplained(
+    ov: &super::unexplained::OutsideVocabulary,
+    train: &super::unexplained::Record,
+    (uv, ev, dv): (&[f64], &[f64], f64),
+) -> Option<UnexplainedProbe> {
+    let (u, dt) = (train.u, train.dt);
+    let lo = u.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = u.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if !(hi > lo) || u.len() < 16 || uv.len() < 16 {
+        return None;
+    }
+    let duration = (u.len() as f64 * dt).clamp(200.0 * dt, MAX_SECONDS);
+    let (mid, a) = (0.5 * (lo + hi), 0.5 * (hi - lo));
+    let inside = |x: &[f64]| x.iter().all(|v| *v >= lo - 1e-9 && *v <= hi + 1e-9);
+    // A band only the validation drive excites: where its residual peaks, the validation
+    // drive puts twenty times the share of its power the training drive does.
+    let sp = super::residual::spectra(uv, ev, dv, 1024);
+    let peak = sp
+        .freq
+        .iter()
+        .zip(&sp.psd_e)
+        .skip(1)
+        .max_by(|x, y| x.1.total_cmp(y.1))
+        .map(|(f, _)| *f)
+        .filter(|f| *f > 0.0 && *f < 0.4 / dt);
+    if let Some(f) = peak {
+        let (st, sv) = (band_share(u, dt, f), band_share(uv, dv, f));
+        if sv > 20.0 * st.max(1e-12) && sv > 0.01 {
+            let spec = format!(
+                "triangle:freq={},amp={},offset={} + chirp:f0={},f1={},duration={},law=log,amp={}",
+                num(1.0 / duration),
+                num(0.8 * a),
+                num(mid),
+                num(0.5 * f),
+                num((2.0 * f).min(0.4 / dt)),
+                num(duration),
+                num(0.1 * a)
+            );
+            let x = Signal::parse(&spec).ok()?.sample(dt, duration);
+            let score = band_share(&x, dt, f) / st.max(1e-12);
+            return Some(UnexplainedProbe {
+                question: format!(
+                    "the validation residual peaks at {} Hz, where the validation drive puts {}x the share of its power the training drive does: a band only the validation record excites (a mode or a rate effect there), which a record sweeping it would pin",
+                    sig(f, 3),
+                    sig(sv / st.max(1e-12), 3)
+                ),
+                kind: "chirp over the band on a slow excursion".into(),
+                signal: spec,
+                duration_s: duration,
+                dt,
+                score,
+                tried: vec![("chirp over the band on a slow excursion".into(), score)],
+            });
+        }
+    }
+    let top = ov.depends_on.first().or(ov.ranked.first())?;
+    if top.feature.contains("not coherent") {
+        // Pick-up: it stays with the drive held, physics does not.
+        let spec = format!("steps:levels={},hold={}", num(mid), num(duration));
+        return Some(UnexplainedProbe {
+            question: format!(
+                "{}: a line that stays with the drive held is pick-up, not the actuator",
+                top.feature
+            ),
+            kind: "drive held".into(),
+            signal: spec,
+            duration_s: duration,
+            dt,
+            score: 1.0,
+            tried: vec![("drive held".into(), 1.0)],
+        });
+    }
+    let base = span(&super::unexplained::feature_on(train, &top.feature, u, dt)?)?;
+    let level = top.feature == "drive level";
+    // The library at the training's length, and steps with holds four times as long (a
+    // law in the time since a step shows beyond the holds the training had).
+    let long = (4.0 * duration).min(MAX_HOLD_SECONDS);
+    let mut probes: Vec<(String, String, f64)> = library(lo, hi, dt, duration)
+        .into_iter()
+        .map(|(k, s)| (k, s, duration))
+        .collect();
+    probes.push((
+        "long steps and holds".into(),
+        steps_and_holds(lo, hi, long),
+        long,
+    ));
+    let mut tried: Vec<(String, String, f64, f64)> = probes
+        .into_iter()
+        .filter_map(|(kind, spec, seconds)| {
+            let x = Signal::parse(&spec).ok()?.sample(dt, seconds);
+            if x.is_empty() || !inside(&x) {
+                return None;
+            }
+            let f = super::unexplained::feature_on(train, &top.feature, &x, dt)?;
+            let apart = if level { 1.0 } else { apart_from_level(&f, &x) };
+            Some((kind, spec, reach(&f, base) * apart, seconds))
+        })
+        .collect();
+    tried.sort_by(|p, q| q.2.total_cmp(&p.2));
+    let (kind, signal, score, duration) = tried.first().cloned()?;
+    Some(UnexplainedProbe {
+        question: format!(
+            "not in the vocabulary, depends on {}: a record that takes it {}x as far as the training record did, apart from the drive level, would show its law",
+            top.feature,
+            sig(score, 3)
+        ),
+        kind,
+        signal,
+        duration_s: duration,
+        dt,
+        score,
+        tried: tried.into_iter().map(|(k, _, s, _)| (k, s)).collect(),
+    })
+}
+
+impl UnexplainedProbe {
+    /// Lines for the text report.
+    pub fn lines(&self) -> Vec<String> {
+        let mut v = vec![format!(
+            "next experiment for what stays unexplained ({}): record {} s at dt = {} s of the {} `{}`",
+            self.question,
+            sig(self.duration_s, 3),
+            sig(self.dt, 3),
+            self.kind,
+            self.signal
+        )];
+        for (k, s) in self.tried.iter().skip(1) {
+            v.push(format!("  also tried: {k} (score {})", sig(*s, 3)));
+        }
+        v
+    }
+}
+
 impl NextExperiment {
     /// Lines for the text report.
     pub fn lines(&self) -> Vec<String> {
@@ -461,5 +670,117 @@ mod tests {
         }
         assert_eq!(num(0.123456789), "0.123457");
         assert_eq!(num(2500.0), "2500");
+    }
+
+    fn dependence(feature: &str) -> crate::diagnose::unexplained::Dependence {
+        crate::diagnose::unexplained::Dependence {
+            feature: feature.into(),
+            gain: 0.3,
+            gain_band: [0.2, 0.4],
+            shape: String::new(),
+        }
+    }
+
+    fn outside(feature: &str) -> crate::diagnose::unexplained::OutsideVocabulary {
+        crate::diagnose::unexplained::OutsideVocabulary {
+            depends_on: vec![dependence(feature)],
+            gain: 0.3,
+            gain_band: [0.2, 0.4],
+            predicts: true,
+            excess: 0.9,
+            ranked: vec![dependence(feature)],
+            text: String::new(),
+        }
+    }
+
+    /// A slow sine sampled every `dt` for `seconds` about 2 V, and a record of it with a
+    /// zero residual (what the proposal reads of the training record is its drive).
+    fn sine(dt: f64, seconds: f64) -> Vec<f64> {
+        Signal::parse("sine:freq=0.5,amp=1.5,offset=2")
+            .unwrap()
+            .sample(dt, seconds)
+    }
+
+    /// Structure in a band only the validation drive excites (a 60 Hz mode that a 0.5 Hz
+    /// training sine never reaches) gets the chirp over that band, which puts far more of
+    /// the drive's power there than the training record did.
+    #[test]
+    fn a_band_only_the_validation_drive_excites_gets_a_chirp_over_it() {
+        let dt = 1e-3;
+        let u = sine(dt, 8.0);
+        let zeros = vec![0.0; u.len()];
+        let train = crate::diagnose::unexplained::Record {
+            u: &u,
+            e: &zeros,
+            y: &zeros,
+            dt,
+            scored: 0..u.len(),
+        };
+        let uv = Signal::parse("sine:freq=0.5,amp=1.2,offset=2 + sine:freq=60,amp=0.2")
+            .unwrap()
+            .sample(dt, 8.0);
+        let ev: Vec<f64> = (0..uv.len())
+            .map(|k| 0.05 * (2.0 * std::f64::consts::PI * 60.0 * k as f64 * dt + 0.7).sin())
+            .collect();
+        let p = for_unexplained(&outside("drive rate (/ RMS)"), &train, (&uv, &ev, dt))
+            .expect("a proposal");
+        assert!(p.kind.contains("chirp"), "{p:?}");
+        let x = Signal::parse(&p.signal).unwrap().sample(dt, p.duration_s);
+        assert!(x.iter().all(|v| *v >= 0.5 - 1e-9 && *v <= 3.5 + 1e-9));
+        // The chirp sweeps the band, an octave either side of the 60 Hz peak.
+        let at = |k: &str| -> f64 {
+            let v = p.signal.split(k).nth(1).unwrap().split(',').next().unwrap();
+            v.parse().unwrap()
+        };
+        let (f0, f1) = (at("f0="), at("f1="));
+        assert!(
+            (25.0..35.0).contains(&f0) && (100.0..140.0).contains(&f1),
+            "{}",
+            p.signal
+        );
+        assert!(p.score > 20.0, "{p:?}");
+        assert!(
+            p.question.contains("only the validation record excites"),
+            "{}",
+            p.question
+        );
+    }
+
+    /// A residual that depends on the time since the last step or hold, on a training sine
+    /// that never holds, gets a record with holds: it spreads that time widest and apart
+    /// from the drive level.
+    #[test]
+    fn a_dependence_on_the_time_since_a_step_gets_steps_and_holds() {
+        let dt = 5e-3;
+        let u = sine(dt, 10.0);
+        let zeros = vec![0.0; u.len()];
+        let train = crate::diagnose::unexplained::Record {
+            u: &u,
+            e: &zeros,
+            y: &zeros,
+            dt,
+            scored: 0..u.len(),
+        };
+        let p = for_unexplained(
+            &outside("time since step or hold (log)"),
+            &train,
+            (&u, &zeros, dt),
+        )
+        .expect("a proposal");
+        assert!(p.kind.contains("steps"), "{p:?}");
+        assert!(p.score > 1.0, "{p:?}");
+        assert!(p.tried.len() >= 4, "{p:?}");
+        assert!(p.tried.windows(2).all(|w| w[0].1 >= w[1].1));
+        // Pick-up at a line not coherent with the drive: the drive held shows it is not the
+        // actuator's.
+        let q = for_unexplained(
+            &outside("a frequency band at 50 Hz, not coherent with the drive"),
+            &train,
+            (&u, &zeros, dt),
+        )
+        .expect("a proposal");
+        assert_eq!(q.kind, "drive held");
+        let x = Signal::parse(&q.signal).unwrap().sample(dt, q.duration_s);
+        assert!(x.iter().all(|v| (*v - x[0]).abs() < 1e-12));
     }
 }

@@ -1142,6 +1142,33 @@ pub fn characterise(
     })
 }
 
+/// The values of the drive feature `name` (a [`Dependence::feature`]) on drive `u`
+/// sampled every `dt`, at the training record's scales (its reversal tolerance and rate
+/// RMS); a direction-split feature signed by the direction. `None` for a feature of the
+/// model's output or a spectral line, which a drive alone does not set.
+pub fn feature_on(train: &Record, name: &str, u: &[f64], dt: f64) -> Option<Vec<f64>> {
+    if u.len() < 2 {
+        return None;
+    }
+    let zeros = vec![0.0; u.len()];
+    let probe = Record {
+        u,
+        e: &zeros,
+        y: &[],
+        dt,
+        scored: 0..u.len(),
+    };
+    let ft = features(&probe, scales(train));
+    let f = candidates(&ft).into_iter().find(|f| f.name == name)?;
+    let x = ft.get(f.source);
+    match f.basis {
+        Basis::Hat(_) => Some(x.to_vec()),
+        Basis::Sign => Some(ft.dir.clone()),
+        Basis::HatBySign(_) => Some(x.iter().zip(&ft.dir).map(|(v, d)| v * d).collect()),
+        Basis::Lines(_) => None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
