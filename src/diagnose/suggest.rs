@@ -354,7 +354,7 @@ pub(super) fn for_unexplained(
     let (u, dt) = (train.u, train.dt);
     let lo = u.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = u.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    if !(hi > lo) || u.len() < 16 || uv.len() < 16 {
+    if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) || u.len() < 16 || uv.len() < 16 {
         return None;
     }
     let duration = (u.len() as f64 * dt).clamp(200.0 * dt, MAX_SECONDS);
