@@ -20,6 +20,10 @@ use std::sync::Arc;
 /// Longest proposed record (s) of the training's kind.
 pub const MAX_SECONDS: f64 = 20.0;
 
+/// Least reach ([`UnexplainedProbe::score`]) worth a proposal: a twentieth beyond the
+/// training record.
+const MIN_REACH: f64 = 1.05;
+
 /// Longest record of holds (s): short enough to record.
 pub const MAX_HOLD_SECONDS: f64 = 120.0;
 
@@ -418,8 +422,15 @@ pub(super) fn for_unexplained(
             tried: vec![("drive held".into(), 1.0)],
         });
     }
-    let base = span(&super::unexplained::feature_on(train, &top.feature, u, dt)?)?;
-    let level = top.feature == "drive level";
+    // The output follows the drive through the loop: an output-level law is spread by
+    // spreading the drive's level.
+    let feature = if top.feature.starts_with("output level") {
+        "drive level"
+    } else {
+        top.feature.as_str()
+    };
+    let base = span(&super::unexplained::feature_on(train, feature, u, dt)?)?;
+    let level = feature == "drive level";
     // The library at the training's length, and steps with holds four times as long (a
     // law in the time since a step shows beyond the holds the training had).
     let long = (4.0 * duration).min(MAX_HOLD_SECONDS);
@@ -439,13 +450,17 @@ pub(super) fn for_unexplained(
             if x.is_empty() || !inside(&x) {
                 return None;
             }
-            let f = super::unexplained::feature_on(train, &top.feature, &x, dt)?;
+            let f = super::unexplained::feature_on(train, feature, &x, dt)?;
             let apart = if level { 1.0 } else { apart_from_level(&f, &x) };
             Some((kind, spec, reach(&f, base) * apart, seconds))
         })
         .collect();
     tried.sort_by(|p, q| q.2.total_cmp(&p.2));
     let (kind, signal, score, duration) = tried.first().cloned()?;
+    // No excitation within the recorded range takes it further: nothing to propose.
+    if score <= MIN_REACH {
+        return None;
+    }
     Some(UnexplainedProbe {
         question: format!(
             "not in the vocabulary, depends on {}: a record that takes it {}x as far as the training record did, apart from the drive level, would show its law",
@@ -771,6 +786,14 @@ mod tests {
         assert!(p.score > 1.0, "{p:?}");
         assert!(p.tried.len() >= 4, "{p:?}");
         assert!(p.tried.windows(2).all(|w| w[0].1 >= w[1].1));
+        // A law in the drive level (or the output's, which follows it) on a record that
+        // already spans the recorded range: no excitation inside it reaches further.
+        for f in ["drive level", "output level (fine)"] {
+            assert!(
+                for_unexplained(&outside(f), &train, (&u, &zeros, dt)).is_none(),
+                "{f}"
+            );
+        }
         // Pick-up at a line not coherent with the drive: the drive held shows it is not the
         // actuator's.
         let q = for_unexplained(
