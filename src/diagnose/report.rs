@@ -546,8 +546,13 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
 /// The residual's axis label: its sign said.
 const RESIDUAL: &str = "residual, measured − model";
 
-/// The validation residual's title and what marks how it was judged: each record's lead
-/// shaded (fitted, not scored) and a rule at each forecast origin.
+/// What marks how the validation records were judged on their residual's figure: each
+/// record's lead shaded (fitted, not scored) and a rule at each forecast origin.
+pub fn judging_marks(s: &Series) -> render::Decor {
+    judging_decor(s, "validate").1
+}
+
+/// The validation residual's title and [`judging_marks`].
 fn judging_decor(s: &Series, set: &str) -> (String, render::Decor) {
     let t = &s.t[1];
     let at = |k: usize| t[k.min(t.len().saturating_sub(1))];
@@ -839,4 +844,94 @@ fn unexplained_figure(d: &Diagnosis, dir: &Path) -> Result<()> {
         &format!("mean {RESIDUAL}{}", bracket(&d.unit)),
         (false, false),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::StepsReport;
+    use crate::diagnose::steps::tests::staircase;
+
+    /// A training record of steps and holds (or a sine), its residual a creep after each
+    /// step, for the holds' figure.
+    fn series(u: Vec<f64>, dt: f64) -> Series {
+        let t: Vec<f64> = (0..u.len()).map(|k| k as f64 * dt).collect();
+        let (mut last, mut since, mut step) = (u[0], 0usize, 0.0);
+        let y: Vec<f64> = u
+            .iter()
+            .enumerate()
+            .map(|(k, &v)| {
+                if v != last {
+                    (step, last, since) = (v - last, v, k);
+                }
+                v + 0.01 * step * (1.0 + (k - since) as f64 * dt / 0.01).log10()
+            })
+            .collect();
+        Series {
+            t: [t.clone(), t],
+            u: [u.clone(), u.clone()],
+            y: [y.clone(), y],
+            baseline: [u.clone(), u.clone()],
+            final_model: [u.clone(), u],
+            dt: [dt, dt],
+            final_label: "bouc-wen+creep".into(),
+            input_unit: "V".into(),
+            ..Series::default()
+        }
+    }
+
+    #[test]
+    fn the_holds_figure_has_one_point_per_hold_and_is_left_out_without_holds() {
+        let dt = 0.01;
+        let u = staircase(&[0.0, 80.0, 20.0, 100.0, 40.0, 90.0, 10.0, 60.0], 2.0, dt);
+        let s = series(u, dt);
+        let holds = steps::holds(&s.u[0], dt);
+        assert_eq!(holds.len(), 7);
+        let pts = step_points(&s);
+        for p in &pts {
+            assert_eq!(p.len(), holds.len());
+            // The move of each point is its hold's; creep follows it.
+            for (q, h) in p.iter().zip(&holds) {
+                assert_eq!(q.0, h.step);
+                assert!(q.1 * h.step > 0.0, "{q:?} {h:?}");
+            }
+        }
+        let e: Vec<f64> = s.y[0].iter().zip(&s.u[0]).map(|(y, u)| y - u).collect();
+        let ev = StepsReport {
+            holds: holds.len(),
+            baseline: steps::step_evidence(&s.u[0], &e, dt, 1),
+            final_model: None,
+        };
+        assert_eq!(ev.baseline.as_ref().unwrap().verdict, steps::FOLLOWS);
+        let dir = tempfile::tempdir().unwrap();
+        write_steps(&s, &ev, "bouc-wen", "um", dir.path()).unwrap();
+        for ext in ["png", "svg"] {
+            assert!(dir.path().join(format!("train_steps.{ext}")).exists());
+        }
+        // A sine has no holds: no figure.
+        let sine: Vec<f64> = (0..2000).map(|k| (k as f64 * dt).sin()).collect();
+        let s = series(sine, dt);
+        assert!(step_points(&s)[0].is_empty());
+        let dir = tempfile::tempdir().unwrap();
+        write_steps(&s, &StepsReport::default(), "bouc-wen", "um", dir.path()).unwrap();
+        assert!(!dir.path().join("train_steps.png").exists());
+    }
+
+    #[test]
+    fn the_judging_marks_shade_each_lead_and_rule_each_origin() {
+        let dt = 0.01;
+        let u: Vec<f64> = (0..1000).map(|k| (k as f64 * dt * 3.0).sin()).collect();
+        let mut s = series(u.clone(), dt);
+        let o = crate::diagnose::forecast::origins(&u);
+        s.origins.clone_from(&o);
+        s.leads = vec![0..o[0]];
+        let d = judging_marks(&s);
+        let (label, band) = d.band.unwrap();
+        assert!(label.starts_with("lead"));
+        assert_eq!(band, vec![(0.0, s.t[1][o[0]])]);
+        let (label, at) = d.rules.unwrap();
+        assert_eq!(label, "forecast origins");
+        let want: Vec<f64> = o.iter().map(|&k| s.t[1][k]).collect();
+        assert_eq!(at, want);
+    }
 }

@@ -270,3 +270,49 @@ pub fn lines_with(
         },
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn long_legend_labels_wrap_at_a_plus_and_short_ones_do_not() {
+        assert_eq!(wrap("baseline (pi)"), vec!["baseline (pi)".to_string()]);
+        let l = "bouc-wen+input-lag+asymmetry[direction]+rate-dependence[gain]+offset-drift[spline]: validation RMSE 0.484 um";
+        let rows = wrap(l);
+        assert!(rows.len() >= 2, "{rows:?}");
+        assert!(rows.iter().all(|r| r.chars().count() <= LEGEND_ROW + 3), "{rows:?}");
+        assert!(rows[0].ends_with('+'), "{rows:?}");
+        // Nothing is lost but the breaks' spaces and the continuation indent.
+        let joined: String = rows.iter().map(|r| r.trim()).collect::<Vec<_>>().join(" ");
+        assert_eq!(joined.replace("+ ", "+").replace(' ', ""), l.replace(' ', ""));
+    }
+
+    #[test]
+    fn a_decorated_figure_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let pts: Vec<(f64, f64)> = (0..200).map(|k| (k as f64, (k as f64 / 9.0).sin())).collect();
+        let decor = Decor {
+            band: Some(("lead".into(), vec![(0.0, 40.0)])),
+            rules: Some(("origins".into(), vec![40.0, 80.0, 120.0])),
+            points: vec![1],
+            include: vec![(0.0, -2.0)],
+        };
+        let few: Vec<(f64, f64)> = pts.iter().step_by(20).copied().collect();
+        lines_with(
+            &dir.path().join("d"),
+            "decorated",
+            &[("line".into(), pts), ("points".into(), few)],
+            "x",
+            "y",
+            (false, false),
+            &decor,
+        )
+        .unwrap();
+        let svg = std::fs::read_to_string(dir.path().join("d.svg")).unwrap();
+        // Each legend entry is a text of its own (the band's and the rules' too).
+        for label in ["lead", "origins", "points", "line"] {
+            assert!(svg.lines().any(|l| l.trim() == label), "{label}");
+        }
+    }
+}
