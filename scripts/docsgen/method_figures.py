@@ -83,31 +83,40 @@ def collect(ctx):
 def render(d):
     f = {}
     j = d["judging"]
-    u = j["unit"]
+    u = j["unit"].replace("um", "µm")
     lead = j["samples"] - j["scored"]
     f["method-figure-judging"] = (
         "![P-885 validation residual over time, the lead shaded and the forecast origins "
         "marked](figures/method_judging.png)\n\n"
-        f"*P-885, the identification sine against the ramped test record (`optbench "
-        f"diagnose`, `validate_residual_time.png`): the residual (measured − model) of the "
-        f"baseline and of the final model `{j['final_model']}` on the test record, whose "
+        "*P-885, the identification sine against the ramped test record (`optbench diagnose "
+        "... --trim-start 1`, its `validate_residual_time.png`): the test record's residual "
+        f"(measured − model) for the baseline and the final model `{j['final_model']}`; its "
         f"first {lead} samples ({sig(lead * j['dt'])} s, shaded) are the lead, fitted and "
-        f"never scored, and whose {j['scored']} samples from the first dashed forecast origin "
-        f"on are each predicted from the samples before their origin, to "
-        f"{sig(j['final'])} {u} RMS (baseline {sig(j['baseline'])} {u}).*")
+        f"never scored, and each of the {j['scored']} samples from the first dashed forecast "
+        "origin on is predicted from the samples before its origin, the final model to "
+        f"{sig(j['final'])} {u} RMS (the baseline {sig(j['baseline'])} {u}).*")
     s = d["steps"]
     n = s["holds"]
-    v = s["verdicts"]
+    few = all(v == "too few holds" for v in s["verdicts"].values())
+    if few:
+        what = ("one point per model (its residual's change over the hold against the move "
+                "before it) and no correlation line: " if n == 1 else
+                "a point per hold and model, and no correlation line: ")
+        what += ("too few holds for a verdict, which needs two after rises, two after "
+                 "falls and five in all")
+    else:
+        what = (f"a point per hold and model and the line through the origin the "
+                f"correlation measures: the baseline's residual {s['verdicts']['baseline']}, "
+                f"the final model's {s['verdicts']['final']}")
     holds = "one hold" if n == 1 else f"{n} holds"
-    verdict = (f"too few for a verdict, so both residuals are shown as points without the "
-               f"correlation's line" if v["baseline"] == v["final"] == "too few holds"
-               else f"the baseline's residual {v['baseline']}, the final model's {v['final']}")
     f["method-figure-steps"] = (
         "![P-885 residual change over each hold of the drive against the move before "
         "it](figures/method_steps.png)\n\n"
-        f"*P-885 with the roles swapped, the ramped test record as training (`train_steps.png`; "
-        f"the identification sine has no holds): the test drive has {holds} the rule counts "
-        f"(the other is reached by a move under a tenth of the range), {verdict}.*")
+        "*P-885 with the records' roles swapped, the ramped test record as training and the "
+        "identification sine (which has no holds) as validation (`--model bouc-wen`, its "
+        f"`train_steps.png`): the rule counts {holds} in the test drive"
+        + (" (its first hold is reached by a move under a tenth of the range)" if n == 1
+           else "") + f", so the figure shows {what}.*")
     if "cores" in d:
         c = d["cores"]
         kept = next(t for t in c["trials"] if t["chosen"])
@@ -116,22 +125,29 @@ def render(d):
         f["method-figure-cores"] = (
             "![P-885 each core's final model predicting the validation record: residual RMS "
             "over time per core](figures/method_cores.png)\n\n"
-            f"*P-885, the same run (`validate_cores.png`): the residual RMS over time of each "
-            f"core's final model on the test record, where `{kept['model']}` (kept, "
-            f"{sig(kept['rmse'])} {u}) stays below the others ({others}) after the lead, "
-            f"below Bouc-Wen's band ({sig(c['band'][0])}-{sig(c['band'][1])} {u}).*")
+            "*P-885, the run of the first figure (its `validate_cores.png`): the residual "
+            "RMS over time of each core's final model on the test record, the kept "
+            f"`{kept['model']}` at or below the others throughout; over the scored samples it "
+            f"predicts to {sig(kept['rmse'])} {u}, below the Bouc-Wen model's band "
+            f"({sig(c['band'][0])}-{sig(c['band'][1])} {u}; the others: {others}).*")
     if "unexplained" in d:
         x = d["unexplained"]
-        pct = lambda v: f"{100 * v:.0f} %"   # noqa: E731
+
+        def pct(v):
+            return f"{100 * v:.0f} %"
+
         f["method-figure-unexplained"] = (
             "![P-885 final residual against the feature it depends on most, binned, on "
             "training and validation, with the correction fitted on "
             "training](figures/method_unexplained.png)\n\n"
-            f"*P-885, the same run (`validate_unexplained.png`): the final residual binned by "
-            f"the {x['feature']}, the feature it depends on most, and the correction fitted "
-            f"on training, which removes {pct(x['gain'])} of the validation mean square alone "
-            f"(95 % {pct(x['band'][0])} to {pct(x['band'][1])}): "
-            + ("it predicts the held-out record." if x["predicts"] else
-               "the band reaches zero, so it does not predict the held-out record and no "
-               "dependence is claimed.") + "*")
+            "*P-885, the run of the first figure (its `validate_unexplained.png`): the final "
+            f"residual in bins of the {x['feature']}, the feature whose correction alone "
+            "removes most of the validation mean square, on training (solid) and on the test "
+            "record's scored samples (dashed), with the correction fitted on training "
+            f"(dotted), which removes {pct(x['gain'])} (95 % {pct(x['band'][0])} to "
+            f"{pct(x['band'][1])}): "
+            + ("the validation residual follows it, and it predicts the held-out record." if
+               x["predicts"] else
+               "the training residual follows it, the validation residual does not lie on "
+               "it and the band reaches below zero, so no dependence is claimed.") + "*")
     return f

@@ -636,7 +636,7 @@ pub fn write_steps(
     for (i, pts) in points.iter().enumerate() {
         let verdict = match evidence[i] {
             Some(e) => format!("{}, p = {}", e.verdict, p(e.p_value)),
-            None => "too few holds (needs 2 up, 2 down, 5 in all)".into(),
+            None => "too few holds".into(),
         };
         series.push((format!("{}: {verdict}", names[i]), pts.clone()));
     }
@@ -661,10 +661,10 @@ pub fn write_steps(
     }
     let up = points[0].iter().filter(|q| q.0 > 0.0).count();
     let title = if evidence.iter().any(|e| e.is_some()) {
-        format!("train: the residual over the drive's {k} holds ({up} after a rise)")
+        format!("train: residual over the drive's {k} holds ({up} after a rise)")
     } else {
         format!(
-            "train: the residual over the drive's {k} hold{}: too few for a verdict",
+            "train: residual over the drive's {k} hold{} (a verdict needs 2 up, 2 down, 5 in all)",
             if k == 1 { "" } else { "s" }
         )
     };
@@ -680,11 +680,11 @@ pub fn write_steps(
         &title,
         &series,
         &input,
-        &format!("change of the {RESIDUAL} over the hold{}", bracket(unit)),
+        &format!("Δ(measured − model) over the hold{}", bracket(unit)),
         (false, false),
         &render::Decor {
             points: vec![0, 1],
-            include: vec![(-reach, 0.0), (reach, 0.0)],
+            include: vec![(-1.15 * reach, 0.0), (1.15 * reach, 0.0)],
             ..render::Decor::default()
         },
     )
@@ -771,7 +771,9 @@ fn binned_by(x: &[f64], v: &[f64], keep: impl Fn(usize) -> bool) -> Vec<(f64, f6
     (0..bins)
         .map(|b| {
             let part = &idx[b * idx.len() / bins..(b + 1) * idx.len() / bins];
-            let m = |f: &dyn Fn(usize) -> f64| part.iter().map(|&i| f(i)).sum::<f64>() / part.len() as f64;
+            let m = |f: &dyn Fn(usize) -> f64| {
+                part.iter().map(|&i| f(i)).sum::<f64>() / part.len() as f64
+            };
             (m(&|i| x[i]), m(&|i| v[i]))
         })
         .collect()
@@ -825,7 +827,10 @@ fn unexplained_figure(d: &Diagnosis, dir: &Path) -> Result<()> {
             pct(r.gain_band[0]),
             pct(r.gain_band[1])
         );
-        for (label, _) in series.iter_mut().filter(|(l, _)| l.starts_with("correction")) {
+        for (label, _) in series
+            .iter_mut()
+            .filter(|(l, _)| l.starts_with("correction"))
+        {
             label.push_str(&gain);
         }
     }
@@ -924,7 +929,7 @@ mod tests {
         let mut s = series(u.clone(), dt);
         let o = crate::diagnose::forecast::origins(&u);
         s.origins.clone_from(&o);
-        s.leads = vec![0..o[0]];
+        s.leads = std::iter::once(0..o[0]).collect();
         let d = judging_marks(&s);
         let (label, band) = d.band.unwrap();
         assert!(label.starts_with("lead"));

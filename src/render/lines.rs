@@ -4,13 +4,13 @@
 use super::axes::Axis;
 use super::canvas::{DrawResult, Figure, Scale, render};
 use super::font;
+use super::layout::SWATCH;
 use super::layout::{
     Pen, TICK_LINE, build, clamp_note, ink_all, line_series, mesh, point_series, side_areas,
     titled, x_label_area,
 };
 use super::legend::{Corner, legend, legend_headroom};
 use super::loops::{MAX_LOOP_POINTS, stride};
-use super::layout::SWATCH;
 use super::style::{Line, series_style};
 use crate::base::error::Result;
 use plotters::coord::Shift;
@@ -51,7 +51,10 @@ impl Figure for Lines<'_> {
         DB::ErrorType: 'static,
     {
         let d = self.decor;
-        let band_x = d.band.iter().flat_map(|b| b.1.iter().flat_map(|r| [r.0, r.1]));
+        let band_x = d
+            .band
+            .iter()
+            .flat_map(|b| b.1.iter().flat_map(|r| [r.0, r.1]));
         let rule_x = d.rules.iter().flat_map(|r| r.1.iter().copied());
         let xs: Vec<f64> = self
             .series
@@ -281,17 +284,25 @@ mod tests {
         let l = "bouc-wen+input-lag+asymmetry[direction]+rate-dependence[gain]+offset-drift[spline]: validation RMSE 0.484 um";
         let rows = wrap(l);
         assert!(rows.len() >= 2, "{rows:?}");
-        assert!(rows.iter().all(|r| r.chars().count() <= LEGEND_ROW + 3), "{rows:?}");
+        assert!(
+            rows.iter().all(|r| r.chars().count() <= LEGEND_ROW + 3),
+            "{rows:?}"
+        );
         assert!(rows[0].ends_with('+'), "{rows:?}");
         // Nothing is lost but the breaks' spaces and the continuation indent.
         let joined: String = rows.iter().map(|r| r.trim()).collect::<Vec<_>>().join(" ");
-        assert_eq!(joined.replace("+ ", "+").replace(' ', ""), l.replace(' ', ""));
+        assert_eq!(
+            joined.replace("+ ", "+").replace(' ', ""),
+            l.replace(' ', "")
+        );
     }
 
     #[test]
     fn a_decorated_figure_is_written() {
         let dir = tempfile::tempdir().unwrap();
-        let pts: Vec<(f64, f64)> = (0..200).map(|k| (k as f64, (k as f64 / 9.0).sin())).collect();
+        let pts: Vec<(f64, f64)> = (0..200)
+            .map(|k| (k as f64, (k as f64 / 9.0).sin()))
+            .collect();
         let decor = Decor {
             band: Some(("lead".into(), vec![(0.0, 40.0)])),
             rules: Some(("origins".into(), vec![40.0, 80.0, 120.0])),
