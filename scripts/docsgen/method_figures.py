@@ -25,7 +25,7 @@ FIGURES = {
     "method_unexplained.png": ("main", "validate_unexplained.png"),
 }
 FRAGMENTS = ["method-figure-judging", "method-figure-steps", "method-figure-cores",
-             "method-figure-unexplained"]
+             "method-figure-unexplained", "method-core-p885"]
 # Written only by the full run (the small one searches no other core).
 FULL_ONLY = ["cores", "unexplained"]
 VOLATILE = []
@@ -67,7 +67,7 @@ def collect(ctx):
         data["cores"] = {
             "trials": [{"core": t["core"], "model": t["model"], "rmse": t["validate_rmse"],
                         "chosen": t["chosen"]} for t in c["trials"]],
-            "band": c["trials"][0]["validate_band"],
+            "band": c["trials"][0]["validate_band"], "noise_floor": m["noise_floor"],
             "figure": figure("method_cores.png"),
         }
     o = m.get("outside_vocabulary")
@@ -130,6 +130,21 @@ def render(d):
             f"`{kept['model']}` at or below the others throughout; over the scored samples it "
             f"predicts to {sig(kept['rmse'])} {u}, below the Bouc-Wen model's band "
             f"({sig(c['band'][0])}-{sig(c['band'][1])} {u}; the others: {others}).*")
+        # The chapter's sentence on P-885's core choice, from the same run.
+        by = {t["core"]: t for t in c["trials"]}
+        bw = by["bouc-wen"]
+        parts = [f"the Bouc-Wen search ends at {bw['rmse'] / c['noise_floor']:.1f}x the noise "
+                 f"floor ({sig(bw['rmse'])} {u} predicted)"]
+        band = f"Bouc-Wen's band ({sig(c['band'][0])}-{sig(c['band'][1])} {u})"
+        for core, name in (("pi", "the PI core"), ("preisach", "the 6-level Preisach core")):
+            t = by.get(core)
+            if t is None:
+                continue
+            below = t["rmse"] < c["band"][0]
+            parts.append(f"{name} reaches `{t['model']}` at {sig(t['rmse'])} {u}, "
+                         + (f"below {band}" if below else f"not below {band}")
+                         + (", and is kept" if t["chosen"] else ""))
+        f["method-core-p885"] = "; ".join(parts)
     if "unexplained" in d:
         x = d["unexplained"]
 

@@ -670,6 +670,11 @@ pub fn write_steps(
     };
     // Both directions of the move and no change shown, whatever the holds.
     let reach = points[0].iter().fold(0.0f64, |m, q| m.max(q.0.abs()));
+    let (lo_d, hi_d) = points
+        .iter()
+        .flatten()
+        .fold((0.0f64, 0.0f64), |(a, b), q| (a.min(q.1), b.max(q.1)));
+    let pad = 0.12 * (hi_d - lo_d);
     let input = if s.input_unit.is_empty() {
         "move before the hold".to_string()
     } else {
@@ -684,7 +689,7 @@ pub fn write_steps(
         (false, false),
         &render::Decor {
             points: vec![0, 1],
-            include: vec![(-1.15 * reach, 0.0), (1.15 * reach, 0.0)],
+            include: vec![(-1.15 * reach, lo_d - pad), (1.15 * reach, hi_d + pad)],
             ..render::Decor::default()
         },
     )

@@ -1344,6 +1344,24 @@ mod tests {
         assert!(o.predicts, "{}", o.text);
         assert!(o.gain > 0.6 && o.gain < 1.0, "{}", o.gain);
         assert_eq!(o.depends_on.len(), 1, "{:#?}", o.depends_on);
+        // The figure's series: the residual against the feature kept, every training
+        // sample and the validation records' scored ones, and the correction on training,
+        // which follows the dead zone's residual (its mean square mostly removed).
+        let p = o.plot.as_ref().expect("a dependence to show");
+        assert_eq!(&p.feature, f);
+        assert_eq!(p.train_x.len(), t.u.len());
+        assert_eq!(p.train_correction.len(), t.u.len());
+        // `run` scores the validation record from its first fifth on.
+        let scored = v.u.len() - v.u.len() / 5;
+        assert_eq!((p.validate_x.len(), p.validate_e.len()), (scored, scored));
+        let ms = |x: &[f64]| x.iter().map(|v| v * v).sum::<f64>();
+        let left: Vec<f64> = p
+            .train_e
+            .iter()
+            .zip(&p.train_correction)
+            .map(|(e, c)| e - c)
+            .collect();
+        assert!(ms(&left) < 0.5 * ms(&p.train_e));
     }
 
     #[test]
