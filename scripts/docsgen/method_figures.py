@@ -37,7 +37,7 @@ def collect(ctx):
     for rid, ((train, validate), extra) in RUNS.items():
         out = ctx.scratch / f"method-{rid}"
         ctx.optbench("diagnose", "--train", base / train, "--validate", base / validate,
-                     *COMMON, *extra, "--out", out, *(SMALL if ctx.small else []))
+                     *COMMON, *(SMALL if ctx.small else extra), "--out", out)
         d[rid] = (out, read_json(out / "diagnosis.json"))
 
     def figure(name):
@@ -140,9 +140,9 @@ def render(d):
             t = by.get(core)
             if t is None:
                 continue
-            below = t["rmse"] < c["band"][0]
-            parts.append(f"{name} reaches `{t['model']}` at {sig(t['rmse'])} {u}, "
-                         + (f"below {band}" if below else f"not below {band}")
+            where = "below" if t["rmse"] < c["band"][0] else "not below"
+            parts.append(f"{name} reaches `{t['model']}` at {sig(t['rmse'])} {u}, {where} "
+                         + (band if len(parts) == 1 else "the band")
                          + (", and is kept" if t["chosen"] else ""))
         f["method-core-p885"] = "; ".join(parts)
     if "unexplained" in d:
