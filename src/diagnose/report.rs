@@ -644,8 +644,10 @@ pub fn write_steps(
     let (lo, hi) = points[0]
         .iter()
         .fold((0.0f64, 0.0f64), |(a, b), q| (a.min(q.0), b.max(q.0)));
+    let mut styles = vec![0, 1];
     for (i, pts) in points.iter().enumerate() {
         if let Some(e) = evidence[i] {
+            styles.push(i);
             let sxx: f64 = pts.iter().map(|q| q.0 * q.0).sum();
             let sxd: f64 = pts.iter().map(|q| q.0 * q.1).sum();
             let b = if sxx > 0.0 { sxd / sxx } else { 0.0 };
@@ -690,6 +692,7 @@ pub fn write_steps(
         &render::Decor {
             points: vec![0, 1],
             include: vec![(-1.15 * reach, lo_d - pad), (1.15 * reach, hi_d + pad)],
+            styles,
             ..render::Decor::default()
         },
     )

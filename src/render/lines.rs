@@ -30,6 +30,9 @@ pub struct Decor {
     pub points: Vec<usize>,
     /// Points the axes must show though nothing is drawn there (say, the origin).
     pub include: Vec<(f64, f64)>,
+    /// The style of series `i` is [`series_style`]`(styles[i])` where given (a fit drawn
+    /// in the colour of its points), else `i`'s.
+    pub styles: Vec<usize>,
 }
 
 struct Lines<'a> {
@@ -127,10 +130,18 @@ impl Figure for Lines<'_> {
         let n = self.series.len();
         for (i, (line, rows)) in lines.into_iter().zip(&wrapped).enumerate() {
             let label = rows.first().map(String::as_str);
+            let st = d.styles.get(i).copied().unwrap_or(i);
             if d.points.contains(&i) {
-                point_series(&mut chart, s, line, series_style(i), label)?;
+                point_series(&mut chart, s, line, series_style(st), label)?;
+            } else if d.points.is_empty() {
+                line_series(&mut chart, s, line, Pen::marked(st, n), label)?;
             } else {
-                line_series(&mut chart, s, line, Pen::marked(i, n), label)?;
+                // Beside points, a line without markers (which would read as points).
+                let pen = Pen {
+                    markers: None,
+                    ..Pen::marked(st, n)
+                };
+                line_series(&mut chart, s, line, pen, label)?;
             }
             for row in rows.iter().skip(1) {
                 chart
@@ -308,6 +319,7 @@ mod tests {
             rules: Some(("origins".into(), vec![40.0, 80.0, 120.0])),
             points: vec![1],
             include: vec![(0.0, -2.0)],
+            styles: vec![0, 0],
         };
         let few: Vec<(f64, f64)> = pts.iter().step_by(20).copied().collect();
         lines_with(
