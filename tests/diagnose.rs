@@ -622,10 +622,28 @@ fn the_p885_stack_is_diagnosed_with_its_start_up_found_and_its_creep_flagged() {
                 .is_some_and(|e| e.contains("refused") && e.contains("[implausible] creep_total"))
     });
     assert!(refused, "{text}");
+    // The refusal is a field of its own (the text report lists from it), set exactly on
+    // the candidates whose evidence says refused, with the why.
+    for c in json["candidates"].as_array().unwrap() {
+        let says = c["evidence"].as_str().unwrap().contains("refused");
+        assert_eq!(c["refused"].is_string(), says, "{c}");
+    }
+    assert!(json["candidates"].as_array().unwrap().iter().any(|c| {
+        c["name"] == "creep"
+            && c["refused"]
+                .as_str()
+                .is_some_and(|r| r.contains("creep_total"))
+    }));
     assert!(
         text.contains("not named although the gate passed"),
         "{text}"
     );
+    // The validation residual's figure is written (with the lead and the origins); the
+    // identification sine has no holds, so there is no holds' figure.
+    let out = tmp.path().join("trimmed");
+    assert!(out.join("validate_residual_time.png").exists());
+    assert!(!out.join("train_steps.png").exists());
+    assert_eq!(json["step_evidence"]["holds"], 0);
     assert_eq!(json["samples"], serde_json::json!([7827, 13955]));
     let v = |set: &str| json[set]["validate_rmse"].as_f64().unwrap();
     assert!(v("final") < v("baseline"), "{text}");

@@ -6,10 +6,11 @@
 mod common;
 
 use optbench::data::recording::Recording;
-use optbench::diagnose::{Options, diagnose, proof};
+use optbench::diagnose::{Options, diagnose, forecast, proof, report};
 use optbench::physics::linear::Mode;
 use optbench::physics::prandtl_ishlinskii::{PiForm, PiModel};
 use optbench::physics::preisach::{Preisach, PreisachGrid};
+use optbench::render::table::sig;
 
 fn pi_opts(seed: u64) -> Options {
     Options {
@@ -328,6 +329,62 @@ fn a_loop_bouc_wen_cannot_shape_is_given_to_the_pi_core() {
         d.final_model.model
     );
     assert_eq!(d.model, "auto: pi");
+    // The figures of the method: each core's final model (one series per core, named by
+    // its final model and its validation RMSE), the validation residual with its lead and
+    // every forecast origin marked where the judging put them.
+    for t in &c.trials {
+        assert_eq!(t.validate_out.len(), d.series.y[1].len(), "{}", t.core);
+    }
+    let kept = c.trials.iter().find(|t| t.chosen).unwrap();
+    assert_eq!(kept.validate_out, d.series.final_model[1]);
+    let series = report::core_series(&d);
+    assert_eq!(series.len(), c.trials.len());
+    for (t, (label, pts)) in c.trials.iter().zip(&series) {
+        assert!(label.starts_with(&t.model), "{label}");
+        assert!(label.contains(&sig(t.validate_rmse, 3)), "{label}");
+        assert!(!pts.is_empty());
+    }
+    let origins = forecast::origins(&d.series.u[1]);
+    assert_eq!(d.series.origins, origins);
+    assert_eq!(d.series.leads.len(), 1);
+    assert_eq!(d.series.leads[0], 0..origins[0]);
+    let marks = report::judging_marks(&d.series);
+    let at: Vec<f64> = origins.iter().map(|&k| d.series.t[1][k]).collect();
+    assert_eq!(marks.rules.unwrap().1, at);
+    assert_eq!(marks.band.unwrap().1, vec![(d.series.t[1][0], at[0])]);
+    let dir = tempfile::tempdir().unwrap();
+    report::write(&d, dir.path()).unwrap();
+    for stem in ["validate_cores", "validate_residual_time"] {
+        for ext in ["png", "svg"] {
+            assert!(dir.path().join(format!("{stem}.{ext}")).exists(), "{stem}");
+        }
+    }
+    // The training drive has no holds: no holds' figure.
+    assert!(!dir.path().join("train_steps.png").exists());
+    assert_eq!(d.step_evidence.holds, 0);
+    // Unexplained structure: its figure, the residual against the feature, on training and
+    // validation, with the correction.
+    let unexplained = dir.path().join("validate_unexplained.png").exists();
+    assert_eq!(
+        unexplained,
+        d.outside_vocabulary
+            .as_ref()
+            .is_some_and(|o| o.plot.is_some())
+    );
+    if let Some(p) = d.outside_vocabulary.as_ref().and_then(|o| o.plot.as_ref()) {
+        let series = report::unexplained_series(&d);
+        assert_eq!(series.len(), if p.by_direction { 6 } else { 3 });
+        assert_eq!(p.train_x.len(), d.series.u[0].len());
+    }
+    // A refusal is a field of its own, set exactly where the evidence says so.
+    for c in &d.candidates {
+        assert_eq!(
+            c.refused.is_some(),
+            c.evidence.contains("refused"),
+            "{}",
+            c.evidence
+        );
+    }
 }
 
 /// On the twin (a Bouc-Wen core) with a concealed delay, `--model auto` has nothing to

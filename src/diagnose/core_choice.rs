@@ -38,6 +38,10 @@ pub struct CoreTrial {
     pub train_rmse: f64,
     pub evaluations: u64,
     pub chosen: bool,
+    /// Its final model's predicted output on the validation records (the same samples as
+    /// [`super::Series`]' validation ones), for the figure.
+    #[serde(skip)]
+    pub validate_out: Vec<f64>,
 }
 
 /// How the core was chosen.
@@ -92,6 +96,7 @@ fn trial(core: &str, s: &Search) -> CoreTrial {
         train_rmse: f.train_rmse,
         evaluations: s.evaluations(),
         chosen: false,
+        validate_out: s.validate_output().to_vec(),
     }
 }
 

@@ -14,6 +14,9 @@ pub(super) struct Verdict {
     pub(super) delta_bic: f64,
     pub(super) passed: bool,
     pub(super) evidence: String,
+    /// Why the gate passed and the candidate was still not named: its own parameters
+    /// implausible or at a bound ([`refuse_implausible`]).
+    pub(super) refused: Option<String>,
 }
 
 /// What a gate needs besides the two models: the parent's validation band (reported), the
@@ -79,6 +82,7 @@ pub(super) fn judge(c: &Evaluated, parent: &Evaluated, g: &Gate) -> Verdict {
             fmt(c.validate_ic),
             fmt(parent.validate_ic),
         ),
+        refused: None,
     }
 }
 
@@ -323,6 +327,7 @@ pub(super) fn refuse_implausible(mut v: Verdict, p: &Proposal, c: &Evaluated, d:
         v.evidence.push_str(&format!(
             "; refused, the gate passed but its own parameters are not plausible: {why}"
         ));
+        v.refused = Some(why);
     }
     v
 }

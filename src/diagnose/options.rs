@@ -248,6 +248,10 @@ pub struct Candidate {
     pub params: BTreeMap<String, f64>,
     /// The gate: ΔBIC, the validation band, the residual battery.
     pub evidence: String,
+    /// Not named although the gate passed: why (its own parameters implausible or at a
+    /// bound, [`plausible::refusal`]); absent when not refused.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refused: Option<String>,
     /// Where a tie rule or the backward step overrode the gate's choice, and why.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
@@ -428,12 +432,21 @@ pub struct Series {
     pub final_label: String,
     /// Unit of the input (the validation record's), for the figures' axes.
     pub input_unit: String,
+    /// The validation samples where a forecast starts ([`super::forecast::origins`] of
+    /// each record, offset to the records back to back; a periodic record's lead end
+    /// alone): the samples before each are fitted, those from it to the next predicted.
+    pub origins: Vec<usize>,
+    /// Each validation record's lead (fitted, never scored).
+    pub leads: Vec<std::ops::Range<usize>>,
 }
 
 /// The step evidence ([`super::steps::step_evidence`]) of the baseline's and the final
 /// model's training residuals.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct StepsReport {
+    /// The training drive's holds ([`super::steps::holds`]), whether or not enough for a
+    /// verdict.
+    pub holds: usize,
     pub baseline: Option<super::steps::StepEvidence>,
     #[serde(rename = "final")]
     pub final_model: Option<super::steps::StepEvidence>,

@@ -600,6 +600,7 @@ pub(super) fn candidate(
         dropped: false,
         params: named(&c.fitted),
         evidence,
+        refused: None,
         notes: Vec::new(),
         plausibility: plausible::check_effects(&c.fitted, &d.scope, &p.effects()),
         ties: Vec::new(),

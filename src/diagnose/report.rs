@@ -1,6 +1,6 @@
 //! What a diagnosis shows: a short text, `diagnosis.json` and the figures.
 
-use super::{Diagnosis, residual};
+use super::{Diagnosis, Series, residual, steps};
 use crate::base::atomic_write;
 use crate::base::error::{Error, Result};
 use crate::physics::model_file;
@@ -321,7 +321,7 @@ pub fn text(d: &Diagnosis) -> String {
     let refused: Vec<String> = d
         .candidates
         .iter()
-        .filter(|c| c.evidence.contains("refused"))
+        .filter(|c| c.refused.is_some())
         .map(|c| format!("{} [{}] (round {})", c.name, c.form, c.round))
         .collect();
     if !refused.is_empty() {
@@ -456,13 +456,22 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
         let pts = |e: &[f64]| -> Vec<(f64, f64)> {
             s.t[i].iter().copied().zip(e.iter().copied()).collect()
         };
-        render::lines(
+        let (title, decor) = if i == 1 {
+            judging_decor(s, set)
+        } else {
+            (
+                format!("{set}: residual over time"),
+                render::Decor::default(),
+            )
+        };
+        render::lines_with(
             &dir.join(format!("{name}_residual_time")),
-            &format!("{set}: residual over time"),
+            &title,
             &[(bl.clone(), pts(&eb)), (format!("final ({fl})"), pts(&ef))],
             "time [s]",
-            &unit(2, "residual"),
+            &unit(2, RESIDUAL),
             (false, false),
+            &decor,
         )?;
         let [br, bf] = binned(&s.u[i], &eb);
         let [fr, ff] = binned(&s.u[i], &ef);
@@ -476,7 +485,7 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
                 ("final, u falling".into(), ff),
             ],
             &format!("{input} (20 equal-count bins)"),
-            &unit(2, "mean residual"),
+            &unit(2, "mean residual, measured − model"),
             (false, false),
         )?;
         // A spectrum needs one sampling interval: the records at the first one's.
@@ -536,5 +545,411 @@ fn figures(d: &Diagnosis, dir: &Path) -> Result<()> {
             &unit(2, "output"),
         )?;
     }
-    Ok(())
+    method_figures(d, dir)
+}
+
+/// The residual's axis label: its sign said.
+const RESIDUAL: &str = "residual, measured − model";
+
+/// What marks how the validation records were judged on their residual's figure: each
+/// record's lead shaded (fitted, not scored) and a rule at each forecast origin.
+pub fn judging_marks(s: &Series) -> render::Decor {
+    judging_decor(s, "validate").1
+}
+
+/// The validation residual's title and [`judging_marks`].
+fn judging_decor(s: &Series, set: &str) -> (String, render::Decor) {
+    let t = &s.t[1];
+    let at = |k: usize| t[k.min(t.len().saturating_sub(1))];
+    let decor = render::Decor {
+        band: Some((
+            "lead (fitted, not scored)".into(),
+            s.leads.iter().map(|r| (at(r.start), at(r.end))).collect(),
+        )),
+        rules: Some((
+            "forecast origins".into(),
+            s.origins.iter().map(|&k| at(k)).collect(),
+        )),
+        ..render::Decor::default()
+    };
+    (
+        format!("{set}: residual predicted from each forecast origin"),
+        decor,
+    )
+}
+
+/// The figures of the method's four findings, each written when its finding is there:
+/// the residual over the training drive's holds (`train_steps`), each core's final model
+/// on the validation records (`validate_cores`), the residual against the feature it
+/// depends on most (`validate_unexplained`).
+fn method_figures(d: &Diagnosis, dir: &Path) -> Result<()> {
+    steps_figure(d, dir)?;
+    cores_figure(d, dir)?;
+    unexplained_figure(d, dir)
+}
+
+/// The unit of the output in brackets, or nothing.
+fn bracket(u: &str) -> String {
+    if u.is_empty() {
+        String::new()
+    } else {
+        format!(" [{u}]")
+    }
+}
+
+/// The holds' points of the baseline's and the final model's training residual: the move
+/// before each hold against the residual's change over it.
+pub fn step_points(s: &Series) -> [Vec<(f64, f64)>; 2] {
+    let on = |out: &[f64]| -> Vec<(f64, f64)> {
+        let e: Vec<f64> = s.y[0].iter().zip(out).map(|(y, m)| y - m).collect();
+        steps::hold_changes(&s.u[0], &e, s.dt[0])
+            .into_iter()
+            .map(|(h, c)| (h.step, c))
+            .collect()
+    };
+    [on(&s.baseline[0]), on(&s.final_model[0])]
+}
+
+/// `train_steps`: for each hold of the training drive the residual's change over it against
+/// the move before it, for the baseline and the final model, with the line through the
+/// origin the correlation measures and the verdict; written when the drive has holds.
+fn steps_figure(d: &Diagnosis, dir: &Path) -> Result<()> {
+    write_steps(&d.series, &d.step_evidence, &d.baseline.model, &d.unit, dir)
+}
+
+/// [`steps_figure`] from the series, the step evidence, the baseline's name and the
+/// output's unit.
+pub fn write_steps(
+    s: &Series,
+    ev: &super::StepsReport,
+    baseline: &str,
+    unit: &str,
+    dir: &Path,
+) -> Result<()> {
+    let points = step_points(s);
+    let k = points[0].len();
+    if k == 0 {
+        return Ok(());
+    }
+    let p = |x: f64| sig(x, 2);
+    let evidence = [&ev.baseline, &ev.final_model];
+    let names = [
+        format!("baseline ({baseline})"),
+        format!("final ({})", s.final_label),
+    ];
+    let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    for (i, pts) in points.iter().enumerate() {
+        let verdict = match evidence[i] {
+            Some(e) => format!("{}, p = {}", e.verdict, p(e.p_value)),
+            None => "too few holds".into(),
+        };
+        series.push((format!("{}: {verdict}", names[i]), pts.clone()));
+    }
+    // The line through the origin whose fit the correlation measures, where it is judged.
+    let (lo, hi) = points[0]
+        .iter()
+        .fold((0.0f64, 0.0f64), |(a, b), q| (a.min(q.0), b.max(q.0)));
+    let mut styles = vec![0, 1];
+    for (i, pts) in points.iter().enumerate() {
+        if let Some(e) = evidence[i] {
+            styles.push(i);
+            let sxx: f64 = pts.iter().map(|q| q.0 * q.0).sum();
+            let sxd: f64 = pts.iter().map(|q| q.0 * q.1).sum();
+            let b = if sxx > 0.0 { sxd / sxx } else { 0.0 };
+            series.push((
+                format!(
+                    "{}: change ∝ move, r = {}",
+                    if i == 0 { "baseline" } else { "final" },
+                    p(e.correlation)
+                ),
+                vec![(lo, lo * b), (hi, hi * b)],
+            ));
+        }
+    }
+    let up = points[0].iter().filter(|q| q.0 > 0.0).count();
+    let title = if evidence.iter().any(|e| e.is_some()) {
+        format!("train: residual over the drive's {k} holds ({up} after a rise)")
+    } else {
+        format!(
+            "train: residual over the drive's {k} hold{} (a verdict needs 2 up, 2 down, 5 in all)",
+            if k == 1 { "" } else { "s" }
+        )
+    };
+    // Both directions of the move and no change shown, whatever the holds.
+    let reach = points[0].iter().fold(0.0f64, |m, q| m.max(q.0.abs()));
+    let (lo_d, hi_d) = points
+        .iter()
+        .flatten()
+        .fold((0.0f64, 0.0f64), |(a, b), q| (a.min(q.1), b.max(q.1)));
+    let pad = 0.12 * (hi_d - lo_d);
+    let input = if s.input_unit.is_empty() {
+        "move before the hold".to_string()
+    } else {
+        format!("move before the hold [{}]", s.input_unit)
+    };
+    render::lines_with(
+        &dir.join("train_steps"),
+        &title,
+        &series,
+        &input,
+        &format!("Δ(measured − model) over the hold{}", bracket(unit)),
+        (false, false),
+        &render::Decor {
+            points: vec![0, 1],
+            include: vec![(-1.15 * reach, lo_d - pad), (1.15 * reach, hi_d + pad)],
+            styles,
+            ..render::Decor::default()
+        },
+    )
+}
+
+/// RMS of `e` in consecutive windows of `w` samples, at each window's middle time.
+fn windowed_rms(t: &[f64], e: &[f64], w: usize) -> Vec<(f64, f64)> {
+    let w = w.max(1);
+    t.chunks(w)
+        .zip(e.chunks(w))
+        .map(|(tc, ec)| {
+            let ms = ec.iter().map(|v| v * v).sum::<f64>() / ec.len() as f64;
+            (tc[tc.len() / 2], ms.sqrt())
+        })
+        .collect()
+}
+
+/// The validation residual of each core's final model, as RMS in windows of about a
+/// second (at least 20 samples): one series per trial, the lead shaded and the origins
+/// marked as in `validate_residual_time`.
+pub fn core_series(d: &Diagnosis) -> Vec<(String, Vec<(f64, f64)>)> {
+    let s = &d.series;
+    let Some(c) = &d.core_choice else {
+        return Vec::new();
+    };
+    let w = ((1.0 / s.dt[1]).round() as usize).max(20);
+    let u = bracket(&d.unit);
+    c.trials
+        .iter()
+        .map(|t| {
+            let e: Vec<f64> = s.y[1]
+                .iter()
+                .zip(&t.validate_out)
+                .map(|(y, m)| y - m)
+                .collect();
+            (
+                format!(
+                    "{}{}: validation RMSE {}{}",
+                    t.model,
+                    if t.chosen { " (kept)" } else { "" },
+                    sig(t.validate_rmse, 3),
+                    u.replace(['[', ']'], "")
+                ),
+                windowed_rms(&s.t[1], &e, w),
+            )
+        })
+        .collect()
+}
+
+/// `validate_cores`: each core's final model predicting the validation records; written
+/// when more than one core was searched.
+fn cores_figure(d: &Diagnosis, dir: &Path) -> Result<()> {
+    if d.core_choice.as_ref().is_none_or(|c| c.trials.len() < 2) {
+        return Ok(());
+    }
+    let series = core_series(d);
+    let (_, decor) = judging_decor(&d.series, "validate");
+    let w = ((1.0 / d.series.dt[1]).round() as usize).max(20);
+    render::lines_with(
+        &dir.join("validate_cores"),
+        &format!(
+            "validate: each core's final model, residual RMS per {} s",
+            sig(w as f64 * d.series.dt[1], 2)
+        ),
+        &series,
+        "time [s]",
+        &format!("RMS of the residual{}", bracket(&d.unit)),
+        (false, false),
+        &decor,
+    )
+}
+
+/// Means of `v` in 20 equal-count bins of `x` (the samples where `keep` holds), at each
+/// bin's mean `x`.
+fn binned_by(x: &[f64], v: &[f64], keep: impl Fn(usize) -> bool) -> Vec<(f64, f64)> {
+    let mut idx: Vec<usize> = (0..x.len().min(v.len()))
+        .filter(|&i| keep(i) && x[i].is_finite() && v[i].is_finite())
+        .collect();
+    if idx.is_empty() {
+        return Vec::new();
+    }
+    idx.sort_by(|&a, &b| x[a].total_cmp(&x[b]));
+    let bins = 20.min(idx.len());
+    (0..bins)
+        .map(|b| {
+            let part = &idx[b * idx.len() / bins..(b + 1) * idx.len() / bins];
+            let m = |f: &dyn Fn(usize) -> f64| {
+                part.iter().map(|&i| f(i)).sum::<f64>() / part.len() as f64
+            };
+            (m(&|i| x[i]), m(&|i| v[i]))
+        })
+        .collect()
+}
+
+/// The series of `validate_unexplained`: the binned training and validation residual
+/// against the feature and the training correction (per direction when it depends on it).
+pub fn unexplained_series(d: &Diagnosis) -> Vec<(String, Vec<(f64, f64)>)> {
+    let Some(p) = d.outside_vocabulary.as_ref().and_then(|o| o.plot.as_ref()) else {
+        return Vec::new();
+    };
+    let dirs: &[(&str, f64)] = if p.by_direction {
+        &[(", drive rising", 1.0), (", drive falling", -1.0)]
+    } else {
+        &[("", 0.0)]
+    };
+    let mut out = Vec::new();
+    for &(dname, sign) in dirs {
+        let on = |dv: &[f64], i: usize| !p.by_direction || dv[i] == sign;
+        out.push((
+            format!("training residual{dname}"),
+            binned_by(&p.train_x, &p.train_e, |i| on(&p.train_dir, i)),
+        ));
+        out.push((
+            format!("validation residual (scored){dname}"),
+            binned_by(&p.validate_x, &p.validate_e, |i| on(&p.validate_dir, i)),
+        ));
+        out.push((
+            format!("correction fitted on training{dname}"),
+            binned_by(&p.train_x, &p.train_correction, |i| on(&p.train_dir, i)),
+        ));
+    }
+    out
+}
+
+/// `validate_unexplained`: the final residual against the feature it depends on most;
+/// written when structure is left outside the vocabulary.
+fn unexplained_figure(d: &Diagnosis, dir: &Path) -> Result<()> {
+    let Some(o) = &d.outside_vocabulary else {
+        return Ok(());
+    };
+    let Some(p) = &o.plot else {
+        return Ok(());
+    };
+    let mut series = unexplained_series(d);
+    let pct = |x: f64| format!("{} %", sig(100.0 * x, 2));
+    if let Some(r) = o.ranked.iter().find(|r| r.feature == p.feature) {
+        let gain = format!(
+            ": removes {} of the validation mean square (95 % {} to {})",
+            pct(r.gain),
+            pct(r.gain_band[0]),
+            pct(r.gain_band[1])
+        );
+        for (label, _) in series
+            .iter_mut()
+            .filter(|(l, _)| l.starts_with("correction"))
+        {
+            label.push_str(&gain);
+        }
+    }
+    let unit = match p.unit.as_str() {
+        "input" => d.series.input_unit.clone(),
+        "output" => d.unit.clone(),
+        "input²" if !d.series.input_unit.is_empty() => format!("{}²", d.series.input_unit),
+        "input²" => String::new(),
+        u => u.to_string(),
+    };
+    render::lines(
+        &dir.join("validate_unexplained"),
+        &format!("final residual against {}", p.feature),
+        &series,
+        &format!("{}{} (20 equal-count bins)", p.feature, bracket(&unit)),
+        &format!("mean {RESIDUAL}{}", bracket(&d.unit)),
+        (false, false),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::StepsReport;
+    use crate::diagnose::steps::tests::staircase;
+
+    /// A training record of steps and holds (or a sine), its residual a creep after each
+    /// step, for the holds' figure.
+    fn series(u: Vec<f64>, dt: f64) -> Series {
+        let t: Vec<f64> = (0..u.len()).map(|k| k as f64 * dt).collect();
+        let (mut last, mut since, mut step) = (u[0], 0usize, 0.0);
+        let y: Vec<f64> = u
+            .iter()
+            .enumerate()
+            .map(|(k, &v)| {
+                if v != last {
+                    (step, last, since) = (v - last, v, k);
+                }
+                v + 0.01 * step * (1.0 + (k - since) as f64 * dt / 0.01).log10()
+            })
+            .collect();
+        Series {
+            t: [t.clone(), t],
+            u: [u.clone(), u.clone()],
+            y: [y.clone(), y],
+            baseline: [u.clone(), u.clone()],
+            final_model: [u.clone(), u],
+            dt: [dt, dt],
+            final_label: "bouc-wen+creep".into(),
+            input_unit: "V".into(),
+            ..Series::default()
+        }
+    }
+
+    #[test]
+    fn the_holds_figure_has_one_point_per_hold_and_is_left_out_without_holds() {
+        let dt = 0.01;
+        let u = staircase(&[0.0, 80.0, 20.0, 100.0, 40.0, 90.0, 10.0, 60.0], 2.0, dt);
+        let s = series(u, dt);
+        let holds = steps::holds(&s.u[0], dt);
+        assert_eq!(holds.len(), 7);
+        let pts = step_points(&s);
+        for p in &pts {
+            assert_eq!(p.len(), holds.len());
+            // The move of each point is its hold's; creep follows it.
+            for (q, h) in p.iter().zip(&holds) {
+                assert_eq!(q.0, h.step);
+                assert!(q.1 * h.step > 0.0, "{q:?} {h:?}");
+            }
+        }
+        let e: Vec<f64> = s.y[0].iter().zip(&s.u[0]).map(|(y, u)| y - u).collect();
+        let ev = StepsReport {
+            holds: holds.len(),
+            baseline: steps::step_evidence(&s.u[0], &e, dt, 1),
+            final_model: None,
+        };
+        assert_eq!(ev.baseline.as_ref().unwrap().verdict, steps::FOLLOWS);
+        let dir = tempfile::tempdir().unwrap();
+        write_steps(&s, &ev, "bouc-wen", "um", dir.path()).unwrap();
+        for ext in ["png", "svg"] {
+            assert!(dir.path().join(format!("train_steps.{ext}")).exists());
+        }
+        // A sine has no holds: no figure.
+        let sine: Vec<f64> = (0..2000).map(|k| (k as f64 * dt).sin()).collect();
+        let s = series(sine, dt);
+        assert!(step_points(&s)[0].is_empty());
+        let dir = tempfile::tempdir().unwrap();
+        write_steps(&s, &StepsReport::default(), "bouc-wen", "um", dir.path()).unwrap();
+        assert!(!dir.path().join("train_steps.png").exists());
+    }
+
+    #[test]
+    fn the_judging_marks_shade_each_lead_and_rule_each_origin() {
+        let dt = 0.01;
+        let u: Vec<f64> = (0..1000).map(|k| (k as f64 * dt * 3.0).sin()).collect();
+        let mut s = series(u.clone(), dt);
+        let o = crate::diagnose::forecast::origins(&u);
+        s.origins.clone_from(&o);
+        s.leads = std::iter::once(0..o[0]).collect();
+        let d = judging_marks(&s);
+        let (label, band) = d.band.unwrap();
+        assert!(label.starts_with("lead"));
+        assert_eq!(band, vec![(0.0, s.t[1][o[0]])]);
+        let (label, at) = d.rules.unwrap();
+        assert_eq!(label, "forecast origins");
+        let want: Vec<f64> = o.iter().map(|&k| s.t[1][k]).collect();
+        assert_eq!(at, want);
+    }
 }

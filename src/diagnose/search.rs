@@ -648,7 +648,7 @@ impl Search {
     /// counted); its index there.
     fn record(&mut self, p: &Proposal, c: &Evaluated, v: &Verdict, parent: &Structure) -> usize {
         self.evaluations += c.fitted.evaluations;
-        self.candidates.push(candidate(
+        let mut line = candidate(
             p,
             c,
             self.round,
@@ -656,7 +656,9 @@ impl Search {
             v.delta_bic,
             v.evidence.clone(),
             &self.rec.d,
-        ));
+        );
+        line.refused.clone_from(&v.refused);
+        self.candidates.push(line);
         self.candidates.len() - 1
     }
 
@@ -1065,7 +1067,7 @@ impl Search {
                 self.rec.unit,
                 if passed { "yes" } else { "no" },
             ) + &beside;
-            self.candidates.push(candidate(
+            let mut line = candidate(
                 p,
                 c,
                 self.round,
@@ -1073,7 +1075,9 @@ impl Search {
                 d_bic,
                 evidence,
                 &self.rec.d,
-            ));
+            );
+            line.refused = refused;
+            self.candidates.push(line);
         }
         (best, at)
     }
@@ -1151,6 +1155,11 @@ impl Search {
         self.rec.no_room(self.current.validate_rmse, MIN_EXPLAINED)
     }
 
+    /// The reached model's predicted output on the validation records.
+    pub(super) fn validate_output(&self) -> &[f64] {
+        &self.current.out_v
+    }
+
     pub(super) fn noise(&self) -> f64 {
         self.rec.noise
     }
@@ -1215,6 +1224,7 @@ impl Search {
                 steps::step_evidence(&d.ut, &e, self.rec.dt, self.rec.opts.seed)
             };
             StepsReport {
+                holds: steps::holds(&d.ut, self.rec.dt).len(),
                 baseline: on(&series.baseline[0]),
                 final_model: on(&series.final_model[0]),
             }
@@ -1361,6 +1371,16 @@ impl Search {
     fn series(&self) -> Series {
         let (rec, current) = (&self.rec, &self.current);
         let (train, validate) = (&rec.tj.record, &rec.vj.record);
+        let d = &rec.d;
+        let (mut origins, mut leads, mut at) = (Vec::new(), Vec::new(), 0);
+        for (n, _) in d.parts() {
+            let o = forecast::origins(&d.uv[at..at + n]);
+            leads.push(at..at + o[0]);
+            // A periodic record is predicted from its lead's end alone.
+            let take = if d.periodic { 1 } else { o.len() };
+            origins.extend(o[..take].iter().map(|k| at + k));
+            at += n;
+        }
         Series {
             t: [rec.tj.times(), rec.vj.times()],
             u: [train.u.clone(), validate.u.clone()],
@@ -1370,6 +1390,8 @@ impl Search {
             dt: [rec.dt, rec.dv],
             final_label: self.current_summary.model.clone(),
             input_unit: validate.units[1].clone(),
+            origins,
+            leads,
         }
     }
 

@@ -106,25 +106,36 @@ pub const FOLLOWS: &str = "follows the steps";
 const STEP_ALPHA: f64 = 0.05;
 const COMMON_T: f64 = 3.0;
 
-/// The residual `e`'s change over each hold of `u` (its last quarter against its first
-/// samples after a settle of a tenth of the hold, at most 0.1 s) against the moves.
+/// The residual `e`'s change over one hold: its last quarter against its first tenth, after
+/// a settle of a tenth of the hold (at most 0.1 s).
+fn change_over(h: &Hold, e: &[f64], dt: f64) -> f64 {
+    let settle = (h.len / 10).min(((0.1 / dt).round() as usize).max(1));
+    let w = &e[h.at + settle..h.at + h.len];
+    let head = (w.len() / 10).max(1);
+    let tail = (w.len() / 4).max(1);
+    mean(&w[w.len() - tail..]) - mean(&w[..head])
+}
+
+/// Each hold of `u` ([`holds`]) and the residual `e`'s change over it: the points the step
+/// evidence rests on (and its figure shows), whether or not there are enough for a verdict.
+pub fn hold_changes(u: &[f64], e: &[f64], dt: f64) -> Vec<(Hold, f64)> {
+    holds(&u[..u.len().min(e.len())], dt)
+        .into_iter()
+        .map(|h| (h, change_over(&h, e, dt)))
+        .collect()
+}
+
+/// The residual `e`'s change over each hold of `u` ([`hold_changes`]) against the moves.
 /// `None` without holds both ways (two up and two down at least, five in all).
 pub fn step_evidence(u: &[f64], e: &[f64], dt: f64, seed: u64) -> Option<StepEvidence> {
-    let hs = holds(&u[..u.len().min(e.len())], dt);
-    let up = hs.iter().filter(|h| h.step > 0.0).count();
-    let down = hs.len() - up;
-    if up < 2 || down < 2 || hs.len() < 5 {
+    let points = hold_changes(u, e, dt);
+    let up = points.iter().filter(|p| p.0.step > 0.0).count();
+    let down = points.len() - up;
+    if up < 2 || down < 2 || points.len() < 5 {
         return None;
     }
-    let change = |h: &Hold| {
-        let settle = (h.len / 10).min(((0.1 / dt).round() as usize).max(1));
-        let w = &e[h.at + settle..h.at + h.len];
-        let head = (w.len() / 10).max(1);
-        let tail = (w.len() / 4).max(1);
-        mean(&w[w.len() - tail..]) - mean(&w[..head])
-    };
-    let d: Vec<f64> = hs.iter().map(change).collect();
-    let x: Vec<f64> = hs.iter().map(|h| h.step).collect();
+    let d: Vec<f64> = points.iter().map(|p| p.1).collect();
+    let x: Vec<f64> = points.iter().map(|p| p.0.step).collect();
     let corr = |signs: &[f64]| {
         let sxd: f64 = x
             .iter()

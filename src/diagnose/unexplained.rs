@@ -75,6 +75,30 @@ pub struct OutsideVocabulary {
     pub ranked: Vec<Dependence>,
     /// One sentence for the report.
     pub text: String,
+    /// The residual against the feature it depends on most, for the figure (not in
+    /// `diagnosis.json`).
+    #[serde(skip)]
+    pub plot: Option<DependencePlot>,
+}
+
+/// The final residual against one feature: per sample on training (with the correction on
+/// that feature alone fitted there) and on the validation records' scored samples.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DependencePlot {
+    pub feature: String,
+    /// The feature's unit: `input` or `output` (the records' units), or as written.
+    pub unit: String,
+    /// The correction depends on the direction of the drive too (one curve per direction).
+    pub by_direction: bool,
+    pub train_x: Vec<f64>,
+    /// Direction of the drive (1 rising, -1 falling, 0 not yet known) per sample.
+    pub train_dir: Vec<f64>,
+    pub train_e: Vec<f64>,
+    /// The correction fitted on training, at each training sample.
+    pub train_correction: Vec<f64>,
+    pub validate_x: Vec<f64>,
+    pub validate_dir: Vec<f64>,
+    pub validate_e: Vec<f64>,
 }
 
 /// One feature the residual depends on.
@@ -1095,6 +1119,7 @@ pub fn characterise(
         }
     }
     let predicts = !kept.is_empty() && gain_band[0] > 0.0;
+    let order: Vec<usize> = alone.iter().map(|a| a.0).collect();
     let ranked: Vec<Dependence> = alone.into_iter().map(|a| a.1).collect();
     let text = if predicts {
         format!(
@@ -1131,6 +1156,8 @@ pub fn characterise(
             pct(excess)
         )
     };
+    let top = kept.first().copied().or(order.first().copied());
+    let plot = top.and_then(|k| dependence_plot(&setup, &cands[k]));
     Some(OutsideVocabulary {
         depends_on,
         gain,
@@ -1139,6 +1166,7 @@ pub fn characterise(
         excess,
         ranked,
         text,
+        plot,
     })
 }
 
@@ -1167,6 +1195,44 @@ pub fn feature_on(train: &Record, name: &str, u: &[f64], dt: f64) -> Option<Vec<
         Basis::HatBySign(_) => Some(x.iter().zip(&ft.dir).map(|(v, d)| v * d).collect()),
         Basis::Lines(_) => None,
     }
+}
+
+/// The unit of a feature's values: `input`, `output` or as written.
+fn unit_of(s: Source) -> &'static str {
+    match s {
+        Source::Level | Source::Distance => "input",
+        Source::Output => "output",
+        Source::Rate => "per its training RMS",
+        Source::Direction => "1 rising, -1 falling",
+        Source::SinceReversal | Source::SinceEvent => "ln s",
+        Source::Trend => "share of the record",
+        Source::Power(_) => "input²",
+        Source::Time => "s",
+    }
+}
+
+/// The residual against feature `ft` and its correction fitted on training alone.
+fn dependence_plot(setup: &Setup, ft: &Feature) -> Option<DependencePlot> {
+    let t = setup.train;
+    let coef = fit(&[ft], &setup.ft, t.e, t.scored.clone())?;
+    let correction = predict(&[ft], &coef, &setup.ft, t.e.len());
+    let mut p = DependencePlot {
+        feature: ft.name.clone(),
+        unit: unit_of(ft.source).into(),
+        by_direction: matches!(ft.basis, Basis::HatBySign(_)),
+        train_x: setup.ft.get(ft.source).to_vec(),
+        train_dir: setup.ft.dir.clone(),
+        train_e: t.e.to_vec(),
+        train_correction: correction,
+        ..DependencePlot::default()
+    };
+    for (r, f) in setup.validate.iter().zip(&setup.fv) {
+        let x = f.get(ft.source);
+        p.validate_x.extend_from_slice(&x[r.scored.clone()]);
+        p.validate_dir.extend_from_slice(&f.dir[r.scored.clone()]);
+        p.validate_e.extend_from_slice(&r.e[r.scored.clone()]);
+    }
+    Some(p)
 }
 
 #[cfg(test)]
@@ -1305,6 +1371,24 @@ mod tests {
         assert!(o.predicts, "{}", o.text);
         assert!(o.gain > 0.6 && o.gain < 1.0, "{}", o.gain);
         assert_eq!(o.depends_on.len(), 1, "{:#?}", o.depends_on);
+        // The figure's series: the residual against the feature kept, every training
+        // sample and the validation records' scored ones, and the correction on training,
+        // which follows the dead zone's residual (its mean square mostly removed).
+        let p = o.plot.as_ref().expect("a dependence to show");
+        assert_eq!(&p.feature, f);
+        assert_eq!(p.train_x.len(), t.u.len());
+        assert_eq!(p.train_correction.len(), t.u.len());
+        // `run` scores the validation record from its first fifth on.
+        let scored = v.u.len() - v.u.len() / 5;
+        assert_eq!((p.validate_x.len(), p.validate_e.len()), (scored, scored));
+        let ms = |x: &[f64]| x.iter().map(|v| v * v).sum::<f64>();
+        let left: Vec<f64> = p
+            .train_e
+            .iter()
+            .zip(&p.train_correction)
+            .map(|(e, c)| e - c)
+            .collect();
+        assert!(ms(&left) < 0.5 * ms(&p.train_e));
     }
 
     #[test]

@@ -355,6 +355,57 @@ where
     Ok(())
 }
 
+/// Draws `pts` (plot space) as markers of `style` at each point, no line; with a label,
+/// also its legend entry (the marker alone).
+pub(super) fn point_series<'a, DB: DrawingBackend + 'a>(
+    chart: &mut Chart<'a, DB>,
+    s: Scale,
+    pts: Vec<(f64, f64)>,
+    style: SeriesStyle,
+    label: Option<&str>,
+) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    let pen = Pen {
+        style,
+        width: LINE_W,
+        markers: Some(0.0),
+    };
+    let radius = 1.5 * MARK_R * f64::from(s.0);
+    let big = move |at| MarkerAt {
+        at,
+        marker: style.marker,
+        color: style.color,
+        radius,
+    };
+    let anno = chart.draw_series(std::iter::once(Line {
+        points: Vec::new(),
+        color: style.color,
+        width: s.u(pen.width),
+        dash: Vec::new(),
+        canvas: s.1,
+        marks: pts.into_iter().map(big).collect(),
+    }))?;
+    if let Some(l) = label {
+        let sw = s.i(SWATCH);
+        anno.label(l).legend(move |(x, y)| Line {
+            points: Vec::new(),
+            color: style.color,
+            width: 1,
+            dash: Vec::new(),
+            canvas: s.1,
+            marks: vec![MarkerAt {
+                at: (x + sw / 2, y),
+                marker: style.marker,
+                color: style.color,
+                radius,
+            }],
+        });
+    }
+    Ok(())
+}
+
 /// Where `lines` pass, for legend placement.
 pub(super) fn ink_all<DB: DrawingBackend>(
     chart: &Chart<'_, DB>,

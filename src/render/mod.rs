@@ -56,7 +56,7 @@ pub use boxplot::boxplot;
 pub use canvas::{HEIGHT, PNG_DPI, PNG_SCALE, PX_PER_INCH, WIDTH};
 pub use convergence::{ConvergenceSeries, convergence, convergence_series};
 pub use ecdf::{ecdf, ecdf_of, runtimes};
-pub use lines::lines;
+pub use lines::{Decor, lines, lines_with};
 pub use loops::loops;
 pub use measured::MEASURED;
 pub use style::{MIN_GREY_STEP, Marker, PALETTE, SeriesStyle, color, grey, series_style};
