@@ -705,6 +705,7 @@ mod tests {
             excess: 0.9,
             ranked: vec![dependence(feature)],
             text: String::new(),
+            plot: None,
         }
     }
 
