@@ -13,7 +13,9 @@ use std::collections::BTreeMap;
 /// What the diagnosis does; the defaults are what `optbench diagnose` runs.
 #[derive(Clone, Debug)]
 pub struct Options {
-    /// Model family: `bouc-wen` (n fitted), `bouc-wen-n1` (n = 1), `pi` (a
+    /// Model family: `auto` (the core chosen by the data, [`super::core_choice`]; the
+    /// command line's default), `bouc-wen` (n fitted; this struct's default, so a library
+    /// caller pins the core unless asking), `bouc-wen-n1` (n = 1), `pi` (a
     /// Prandtl-Ishlinskii core of [`Self::pi_operators`] plays, [`PiCore`]) or `preisach`
     /// (a Preisach core of [`Self::preisach_levels`] levels).
     pub model: String,
