@@ -205,6 +205,30 @@ fn pi_record(name: &str, pi: &PiModel, u: &[f64], dt: f64, seed: u64) -> Recordi
     Recording::uniform(name, dt, u.to_vec(), y).unwrap()
 }
 
+/// The training and validation records of `pi` on `(ut, uv)`, noise seeds `seed` and
+/// `seed + 2`.
+fn pi_records(
+    pi: &PiModel,
+    (ut, uv): (&[f64], &[f64]),
+    dt: f64,
+    seed: u64,
+) -> (Recording, Recording) {
+    (
+        pi_record("train", pi, ut, dt, seed),
+        pi_record("validate", pi, uv, dt, seed + 2),
+    )
+}
+
+/// The final model predicts the validation record below `share` of the baseline's error.
+fn predicts_better(d: &optbench::diagnose::Diagnosis, share: f64) {
+    assert!(
+        d.final_model.validate_rmse < share * d.baseline.validate_rmse,
+        "{} against {}",
+        d.final_model.validate_rmse,
+        d.baseline.validate_rmse
+    );
+}
+
 fn plain_pi(weights: Vec<f64>, u: &[f64]) -> PiModel {
     PiModel {
         form: PiForm::Plain,
@@ -232,18 +256,10 @@ fn an_asymmetric_pi_model_is_named_asymmetry_by_a_pi_core() {
             &ut,
         )
     };
-    let (t, v) = (
-        pi_record("train", &pi, &ut, dt, 3),
-        pi_record("validate", &pi, &uv, dt, 5),
-    );
+    let (t, v) = pi_records(&pi, (&ut, &uv), dt, 3);
     let d = diagnose(&t, &v, &pi_opts(3)).unwrap();
     assert_eq!(d.accepted_labels(), vec!["asymmetry".to_string()]);
-    assert!(
-        d.final_model.validate_rmse < 0.2 * d.baseline.validate_rmse,
-        "{} against {}",
-        d.final_model.validate_rmse,
-        d.baseline.validate_rmse
-    );
+    predicts_better(&d, 0.2);
 }
 
 /// The rate-dependent PI of Ang et al. (each weight growing with the instantaneous rate,
@@ -259,22 +275,14 @@ fn a_rate_dependent_pi_model_is_named_rate_dependence_by_a_pi_core() {
         rate_weights: weights.iter().map(|w| 0.02 * w).collect(),
         ..plain_pi(weights, &ut)
     };
-    let (t, v) = (
-        pi_record("train", &pi, &ut, dt, 7),
-        pi_record("validate", &pi, &uv, dt, 9),
-    );
+    let (t, v) = pi_records(&pi, (&ut, &uv), dt, 7);
     let d = diagnose(&t, &v, &pi_opts(5)).unwrap();
     assert!(
         d.accepted_labels()[0].starts_with("rate-dependence"),
         "{:?}",
         d.accepted_labels()
     );
-    assert!(
-        d.final_model.validate_rmse < 0.5 * d.baseline.validate_rmse,
-        "{} against {}",
-        d.final_model.validate_rmse,
-        d.baseline.validate_rmse
-    );
+    predicts_better(&d, 0.5);
 }
 
 /// A loop Bouc-Wen cannot shape: a PI model whose weight sits on two wide plays (flat
@@ -298,10 +306,7 @@ fn a_loop_bouc_wen_cannot_shape_is_given_to_the_pi_core() {
         })
         .collect();
     let pi = plain_pi(vec![1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.5, 1.5, 0.0], &ut);
-    let (t, v) = (
-        pi_record("train", &pi, &ut, dt, 11),
-        pi_record("validate", &pi, &uv, dt, 13),
-    );
+    let (t, v) = pi_records(&pi, (&ut, &uv), dt, 11);
     let opts = Options {
         model: "auto".into(),
         seed: 7,

@@ -1208,14 +1208,10 @@ impl Search {
         let series = self.series();
         let nuisances = self.nuisances();
         let validation_judging = self.rec.d.judging(&self.current.fitted);
-        let outside_vocabulary = if unexplained {
+        let (outside_vocabulary, unexplained_probe) = if unexplained {
             self.outside_vocabulary()
         } else {
-            None
-        };
-        let unexplained_probe = match (&outside_vocabulary, self.rec.opts.suggest) {
-            (Some(ov), true) => self.unexplained_probe(ov),
-            _ => None,
+            (None, None)
         };
         let step_evidence = {
             let d = &self.rec.d;
@@ -1316,8 +1312,14 @@ impl Search {
     /// What the structure the final model leaves depends on, and whether a correction on
     /// those features fitted on training predicts the validation records
     /// ([`unexplained::characterise`]; the validation records judged on their scored
-    /// samples, as every candidate was).
-    fn outside_vocabulary(&self) -> Option<unexplained::OutsideVocabulary> {
+    /// samples, as every candidate was); with `--suggest`, the recording that would pin it
+    /// ([`suggest::for_unexplained`]), from the same residuals.
+    fn outside_vocabulary(
+        &self,
+    ) -> (
+        Option<unexplained::OutsideVocabulary>,
+        Option<suggest::UnexplainedProbe>,
+    ) {
         let (d, c) = (&self.rec.d, &self.current);
         let et = training_residual(&d.yt, c);
         let ev: Vec<f64> = d.yv.iter().zip(&c.out_v).map(|(y, m)| y - m).collect();
@@ -1344,27 +1346,15 @@ impl Search {
                 r
             })
             .collect();
-        unexplained::characterise(&train, &parts, self.rec.noise, self.rec.opts.seed)
-    }
-
-    /// The recording that would pin what `ov` leaves unexplained ([`suggest::for_unexplained`]).
-    fn unexplained_probe(
-        &self,
-        ov: &unexplained::OutsideVocabulary,
-    ) -> Option<suggest::UnexplainedProbe> {
-        let (d, c) = (&self.rec.d, &self.current);
-        let et = training_residual(&d.yt, c);
-        let ev: Vec<f64> = d.yv.iter().zip(&c.out_v).map(|(y, m)| y - m).collect();
-        let train = unexplained::Record {
-            u: &d.ut,
-            e: &et,
-            y: &c.out_t,
-            dt: self.rec.dt,
-            scored: 0..et.len(),
-        };
+        let ov = unexplained::characterise(&train, &parts, self.rec.noise, self.rec.opts.seed);
         // The first validation record (a spectrum needs one sampling interval).
-        let n = d.parts().first().map_or(ev.len(), |p| p.0);
-        suggest::for_unexplained(ov, &train, (&d.uv[..n], &ev[..n], self.rec.dv))
+        let probe = match (&ov, parts.first()) {
+            (Some(ov), Some(first)) if self.rec.opts.suggest => {
+                suggest::for_unexplained(ov, &train, (first.u, first.e, first.dt))
+            }
+            _ => None,
+        };
+        (ov, probe)
     }
 
     /// The records and the baseline's and final model's outputs, for the figures.

@@ -717,6 +717,22 @@ mod tests {
             .sample(dt, seconds)
     }
 
+    /// A training record `u` that the model fits exactly (`zeros`: its residual and output
+    /// stand-in; what the proposal reads of it is its drive).
+    fn fitted_exactly<'a>(
+        u: &'a [f64],
+        zeros: &'a [f64],
+        dt: f64,
+    ) -> crate::diagnose::unexplained::Record<'a> {
+        crate::diagnose::unexplained::Record {
+            u,
+            e: zeros,
+            y: zeros,
+            dt,
+            scored: 0..u.len(),
+        }
+    }
+
     /// Structure in a band only the validation drive excites (a 60 Hz mode that a 0.5 Hz
     /// training sine never reaches) gets the chirp over that band, which puts far more of
     /// the drive's power there than the training record did.
@@ -725,13 +741,7 @@ mod tests {
         let dt = 1e-3;
         let u = sine(dt, 8.0);
         let zeros = vec![0.0; u.len()];
-        let train = crate::diagnose::unexplained::Record {
-            u: &u,
-            e: &zeros,
-            y: &zeros,
-            dt,
-            scored: 0..u.len(),
-        };
+        let train = fitted_exactly(&u, &zeros, dt);
         let uv = Signal::parse("sine:freq=0.5,amp=1.2,offset=2 + sine:freq=60,amp=0.2")
             .unwrap()
             .sample(dt, 8.0);
@@ -770,13 +780,7 @@ mod tests {
         let dt = 5e-3;
         let u = sine(dt, 10.0);
         let zeros = vec![0.0; u.len()];
-        let train = crate::diagnose::unexplained::Record {
-            u: &u,
-            e: &zeros,
-            y: &zeros,
-            dt,
-            scored: 0..u.len(),
-        };
+        let train = fitted_exactly(&u, &zeros, dt);
         let p = for_unexplained(
             &outside("time since step or hold (log)"),
             &train,
