@@ -432,8 +432,17 @@ pub(super) fn repolish(c: Evaluated, d: &Data, opts: &Options, salt: u64) -> (Ev
     );
     let polished = evaluate(g, d, opts);
     let used = polished.fitted.evaluations;
+    // Nor may the polish take creep named held at the most a piezo shows
+    // ([`super::judge::held_at_plausible`]) back over it.
+    let over = |e: &Evaluated| {
+        e.fitted
+            .structure
+            .creep_total(&e.fitted.theta)
+            .is_some_and(|t| t > plausible::CREEP_PLAUSIBLE)
+    };
     let better = if polished.fitted.linear.cost <= c.fitted.linear.cost
         && polished.validate_ic <= c.validate_ic + opts.bic_margin
+        && (!over(&polished) || over(&c))
     {
         polished
     } else {

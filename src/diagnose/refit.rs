@@ -517,6 +517,58 @@ pub fn fit_from(
     Fitted::at(st, best, u, y, evaluations)
 }
 
+/// A polish (`budget.polish` evaluations) of every coordinate of `start` but `held`, which
+/// keep `start`'s values: a fit under a constraint the search imposes (creep held at the
+/// most a piezo shows), which [`fit`]'s polish of every coordinate would undo.
+pub fn polish_held(
+    st: &Structure,
+    u: &Arc<Vec<f64>>,
+    y: &Arc<Vec<f64>>,
+    start: &[f64],
+    held: &[usize],
+    budget: Budget,
+    seed: u64,
+) -> Fitted {
+    let obj = Arc::new(StructureObjective::new(st.clone(), u.clone(), y.clone()));
+    let free: Vec<usize> = (0..start.len()).filter(|i| !held.contains(i)).collect();
+    if free.is_empty() {
+        return Fitted::at(st, start.to_vec(), u, y, 0);
+    }
+    let bounds = Bounds::new(
+        free.iter().map(|&i| obj.bounds().lower()[i]).collect(),
+        free.iter().map(|&i| obj.bounds().upper()[i]).collect(),
+    )
+    .expect("valid bounds");
+    let restricted = Arc::new(Restricted {
+        inner: obj,
+        free: free.clone(),
+        base: start.to_vec(),
+        bounds,
+        seen: Mutex::new(Vec::new()),
+    });
+    let label = st.label();
+    let n = u.len().min(y.len());
+    let rec = run_trial(TrialSpec {
+        objective_id: &label,
+        optimizer_id: "levenberg-marquardt",
+        trial: 0,
+        objective: restricted,
+        optimizer: &LevenbergMarquardtFrom {
+            start: free.iter().map(|&i| start[i]).collect(),
+            rel_tol: 0.1 / n.max(1) as f64,
+        },
+        budget: budget.polish,
+        stop_value: None,
+        stall: None,
+        seed: TrialSeed::derive(seed, &label, "levenberg-marquardt", 0),
+    });
+    let mut best = start.to_vec();
+    for (&i, &v) in free.iter().zip(&rec.best_x) {
+        best[i] = v;
+    }
+    Fitted::at(st, best, u, y, rec.evaluations)
+}
+
 /// The global stage's best point `best`, then up to `k - 1` of the points it evaluated
 /// (`seen`, best first) each at least [`DISTINCT`] of an interval from every point taken.
 fn distinct_starts(

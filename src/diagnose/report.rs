@@ -318,11 +318,25 @@ pub fn text(d: &Diagnosis) -> String {
             );
         }
     }
+    // Each refusal with what its round named instead: a candidate of plausible parameters,
+    // or the model without an effect (the stronger test the refused one did not pass).
     let refused: Vec<String> = d
         .candidates
         .iter()
         .filter(|c| c.refused.is_some())
-        .map(|c| format!("{} [{}] (round {})", c.name, c.form, c.round))
+        .map(|c| {
+            let instead = d
+                .candidates
+                .iter()
+                .find(|o| o.accepted && o.round == c.round)
+                .map_or("nothing (the model without it)".to_string(), |o| {
+                    format!("{} [{}]", o.name, o.form)
+                });
+            format!(
+                "{} [{}] (round {}; preferred instead: {instead})",
+                c.name, c.form, c.round
+            )
+        })
         .collect();
     if !refused.is_empty() {
         let _ = writeln!(

@@ -9,8 +9,8 @@ use super::evaluate::{
 use super::forecast::{self, JUDGING_RULE};
 use super::judge::{
     FEEDBACK_WORTH, Gate, MIN_EXPLAINED, RESOLVED_FRACTION, Verdict, at_noise_floor, beside_alone,
-    creep_pinned_fast, drift_first, exchange_gate, judge, refuse_implausible, resonant, round_ties,
-    validation_gain,
+    creep_pinned_fast, drift_first, exchange_gate, held_at_plausible, judge, low_pass_for_timing,
+    refuse_implausible, resonant, round_ties, validation_gain,
 };
 use super::propose::{
     MAX_EXCHANGES, Memory, Proposal, SAME_RESIDUAL, Seeds, candidate, candidate_pool, exchanges,
@@ -612,6 +612,9 @@ impl Search {
             .zip(&tried)
             .map(|(p, c)| verdict(p, c))
             .collect();
+        for (i, (c, v)) in tried.iter_mut().zip(&mut verdicts).enumerate() {
+            self.stronger_test(&rest[i], c, v, &gate, 400 + i as u64);
+        }
         let timing_passes = rest
             .iter()
             .zip(&verdicts)
@@ -641,6 +644,55 @@ impl Search {
             tried,
             verdicts,
             peaks_hz,
+        }
+    }
+
+    /// The stronger test of a candidate `c` refused only for its creep
+    /// ([`held_at_plausible`]): when the fit with creep held at the most a piezo shows still
+    /// passes `gate`, it takes `c`'s place and `v` says so; otherwise `v` says it does not.
+    /// The held fit's evaluations are counted with `c`'s either way.
+    fn stronger_test(
+        &self,
+        p: &Proposal,
+        c: &mut Evaluated,
+        v: &mut Verdict,
+        gate: &Gate,
+        salt: u64,
+    ) {
+        if v.refused.is_none() {
+            return;
+        }
+        let (d, opts) = (&self.rec.d, &self.rec.opts);
+        let Some(mut held) = held_at_plausible(c, p, d, opts, salt) else {
+            return;
+        };
+        let free = c
+            .fitted
+            .structure
+            .creep_total(&c.fitted.theta)
+            .unwrap_or(0.0);
+        let limit = format!(
+            "held at {} % creep in all (the most a piezo shows; fitted freely {} %) with every other parameter polished again",
+            100.0 * plausible::CREEP_PLAUSIBLE,
+            crate::render::table::sig(100.0 * free, 3)
+        );
+        let vh = refuse_implausible(judge(&held, &self.current, gate), p, &held, d);
+        if vh.passed {
+            held.fitted.evaluations += c.fitted.evaluations;
+            *c = held;
+            *v = vh;
+            v.held = true;
+            v.evidence.push_str(&format!(
+                "; {limit}, it passes: named at the edge of plausible"
+            ));
+        } else {
+            c.fitted.evaluations += held.fitted.evaluations;
+            v.evidence.push_str(&format!(
+                "; {limit}, it no longer passes (ΔBIC {}, validation RMSE {} {})",
+                crate::render::table::sig(vh.delta_bic, 3),
+                crate::render::table::sig(held.validate_rmse, 3),
+                self.rec.unit
+            ));
         }
     }
 
@@ -828,11 +880,15 @@ impl Search {
             min_explained: 2.0 * MIN_EXPLAINED,
             ..self.gate()
         };
-        let verdicts: Vec<Verdict> = proposals
+        let mut fitted = fitted;
+        let mut verdicts: Vec<Verdict> = proposals
             .iter()
             .zip(&fitted)
             .map(|(p, c)| refuse_implausible(judge(c, &self.current, &gate), p, c, &self.rec.d))
             .collect();
+        for (i, (c, v)) in fitted.iter_mut().zip(&mut verdicts).enumerate() {
+            self.stronger_test(&proposals[i], c, v, &gate, 500 + i as u64);
+        }
         let mut best: Option<Pick> = None;
         for (i, ((p, c), v)) in proposals.iter().zip(&fitted).zip(&verdicts).enumerate() {
             let at = self.record(p, c, v, parent);
@@ -1043,6 +1099,13 @@ impl Search {
                 ));
             }
             passed &= refused.is_none();
+            if passed && low_pass_for_timing(*out, &p.effects(), &c.fitted, self.rec.dt) {
+                passed = false;
+                beside.push_str(&format!(
+                    "; refused: its modes have no resonance (none peaks 2x below {RESOLVED_FRACTION} of the sampling rate), a low-pass that {} already explains",
+                    out.name()
+                ));
+            }
             if passed && best.is_none_or(|b| d_all < b.1) {
                 best = Some((i, d_all));
             }

@@ -650,7 +650,9 @@ mod tests {
         };
         let d = diagnose(&train, &validate, &opts).unwrap();
         assert_eq!(d.accepted_labels(), ["offset-drift"], "{}", d.search_stop);
-        assert!(d.in_final().all(|c| c.ties.is_empty()));
+        for c in d.in_final() {
+            assert!(c.ties.is_empty(), "{:?}", c.ties);
+        }
         let over = d.final_model.validate_rmse / d.noise_floor;
         assert!(over < 1.2, "final at {over}x the noise floor");
         // Creep was fitted and predicted worse than the drift.

@@ -1049,6 +1049,49 @@ fn a_mode_is_a_resonance_only_with_a_resolved_peak() {
     assert_eq!(resonant(&f, dt), None);
 }
 
+/// An exchange may not put modes with no resonance in place of input timing: blind seed
+/// 20261160 case 0 (a 2-sample fractional delay at 1,040 Hz) was exchanged for a lag and a
+/// mode at 497 Hz with ζ 1.2 beside one at 172 Hz with ζ 0.037 and a share of 7 %.
+#[test]
+fn an_exchange_cannot_put_a_low_pass_in_place_of_input_timing() {
+    let dt = 1.0 / 1039.7;
+    let modes = |hz: [f64; 2], zeta: [f64; 2], share: f64| {
+        fitted(
+            Form::TwoModes,
+            &[
+                ("mode_log10_hz", hz[0].log10()),
+                ("mode_log10_zeta", zeta[0].log10()),
+                ("mode2_log10_hz", hz[1].log10()),
+                ("mode2_log10_zeta", zeta[1].log10()),
+                ("mode2_share", share),
+            ],
+            dt,
+        )
+    };
+    let lag = modes([496.75, 171.54], [1.199, 0.037], 0.068);
+    let resonance = modes([33.1, 91.1], [0.065, 0.083], 0.4);
+    let with = [Effect::InputLag, Effect::Dynamics];
+    assert!(low_pass_for_timing(Effect::Delay, &with, &lag, dt));
+    assert!(low_pass_for_timing(
+        Effect::InputLag,
+        &[Effect::Dynamics],
+        &lag,
+        dt
+    ));
+    assert!(
+        !low_pass_for_timing(Effect::Delay, &with, &resonance, dt),
+        "a resonance is not timing"
+    );
+    assert!(
+        !low_pass_for_timing(Effect::Saturation, &with, &lag, dt),
+        "only input timing"
+    );
+    assert!(
+        !low_pass_for_timing(Effect::Delay, &[Effect::InputLag], &lag, dt),
+        "no modes brought in"
+    );
+}
+
 /// The judging rule (issue 50): a spline drift refitted on the whole validation record
 /// fits it, so under the old rule it beat creep that only predicted it; judged by
 /// prediction alone (the drift fitted on the samples before each forecast origin, the rest
