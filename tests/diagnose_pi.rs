@@ -278,7 +278,9 @@ fn a_rate_dependent_pi_model_is_named_rate_dependence_by_a_pi_core() {
     let (t, v) = pi_records(&pi, (&ut, &uv), dt, 7);
     let d = diagnose(&t, &v, &pi_opts(5)).unwrap();
     assert!(
-        d.accepted_labels()[0].starts_with("rate-dependence"),
+        d.accepted_labels()
+            .first()
+            .is_some_and(|l| l.starts_with("rate-dependence")),
         "{:?}",
         d.accepted_labels()
     );

@@ -3,8 +3,9 @@
 holds for validation), as chapter 7 prints the command. Needs the data folder.
 
 What the docs quote is the tool's own text: the first accepted candidate's line and its
-`! accepted although` flags, the `left out` line, and the report's finding that the
-validation record starts in motion."""
+`! accepted although` flags, the `left out` line, the line of the candidates refused for
+their own parameters, and the report's finding that the validation record starts in
+motion."""
 
 import re
 
@@ -55,6 +56,13 @@ def collect(ctx):
                                                for a in ARGS],
         "accepted": accepted,
         "left_out_line": next(l for l in lines if l.startswith("left out")),
+        "refused_line": next((l for l in lines
+                              if l.startswith("not named although the gate passed")), ""),
+        "refused": [{"name": c["name"], "form": c.get("form"), "round": c["round"],
+                     "held": "held at" in c["evidence"]}
+                    for c in d["candidates"] if c.get("refused")],
+        "held_named": [c["name"] for c in d["candidates"]
+                       if c.get("accepted") and "named at the edge of plausible" in c["evidence"]],
         "motion": motion,
         "wall_s": d["wall_s"],
     }
@@ -67,6 +75,8 @@ def render(d):
     if first:
         block += [first["line"], *first["flag_lines"], "    ..."]
     block.append(d["left_out_line"])
+    if d.get("refused_line"):
+        block += ["    ...", d["refused_line"]]
     if first:
         bound = [WORDS.get(p["parameter"], f"`{p['parameter']}` at a bound")
                  for p in first["flags"] if p["kind"] == "at-bound"]
@@ -77,6 +87,16 @@ def render(d):
                    f"{said}" + (f", and {' and '.join(other)}" if other else "") + ".")
     else:
         reading = "No candidate is accepted."
+    refused = d.get("refused") or []
+    if refused:
+        held = sum(1 for r in refused if r["held"])
+        reading += (f" {len(refused)} candidate(s) passed the gate with their own parameters "
+                    f"implausible or at a bound and were not named"
+                    + (f"; {held} of them creep that no longer passed when held at a quarter "
+                       f"of the drive" if held else "") + ".")
+    if d.get("held_named"):
+        reading += (f" Named with creep held at a quarter of the drive (the stronger test "
+                    f"passed): {', '.join(d['held_named'])}.")
     f["p885-flags"] = ("```text\n" + "\n".join(block) + "\n```\n\n" + reading
                        + f" The diagnosis took {d['wall_s']:.0f} s in this generation.")
     return f

@@ -19,9 +19,8 @@ use serde::Serialize;
 /// The model families that compete, the one the search starts from first.
 pub const CORES: [&str; 3] = ["bouc-wen", "pi", "preisach"];
 
-/// The Bouc-Wen exponent's range ([`crate::physics::structure::Structure`]'s `n` spec);
-/// within this of an end it sits at the bound.
-const N_RANGE: [f64; 2] = [0.5, 3.0];
+/// Within this of an end of its range (the structure's `n` spec) the Bouc-Wen exponent
+/// sits at the bound.
 const AT_BOUND: f64 = 0.02;
 
 /// One core's search: its final model and how well that predicts.
@@ -61,11 +60,11 @@ pub struct CoreChoice {
 /// prediction above the noise floor.
 fn rejections(s: &Search) -> Vec<String> {
     let mut why = Vec::new();
-    if let Some(&n) = s.final_summary().params.get("n") {
-        let at = if n <= N_RANGE[0] + AT_BOUND {
-            Some(N_RANGE[0])
-        } else if n >= N_RANGE[1] - AT_BOUND {
-            Some(N_RANGE[1])
+    if let (Some(&n), Some([lo, hi])) = (s.final_summary().params.get("n"), s.param_range("n")) {
+        let at = if n <= lo + AT_BOUND {
+            Some(lo)
+        } else if n >= hi - AT_BOUND {
+            Some(hi)
         } else {
             None
         };

@@ -1218,6 +1218,17 @@ impl Search {
         self.rec.no_room(self.current.validate_rmse, MIN_EXPLAINED)
     }
 
+    /// The range of the reached model's shape parameter `name` (`None` when it has none).
+    pub(super) fn param_range(&self, name: &str) -> Option<[f64; 2]> {
+        self.current
+            .fitted
+            .structure
+            .specs()
+            .iter()
+            .find(|s| s.name == name)
+            .map(|s| [s.lower, s.upper])
+    }
+
     /// The reached model's predicted output on the validation records.
     pub(super) fn validate_output(&self) -> &[f64] {
         &self.current.out_v
