@@ -432,13 +432,14 @@ pub(super) fn repolish(c: Evaluated, d: &Data, opts: &Options, salt: u64) -> (Ev
     );
     let polished = evaluate(g, d, opts);
     let used = polished.fitted.evaluations;
-    // Nor may the polish take creep named held at the most a piezo shows
-    // ([`super::judge::held_at_plausible`]) back over it.
+    // Nor may the polish bring back what the stronger test held
+    // ([`super::judge::held_at_plausible`]): creep over the most a piezo shows, a slow
+    // element at the upper bound of its time constant.
     let over = |e: &Evaluated| {
-        e.fitted
-            .structure
-            .creep_total(&e.fitted.theta)
-            .is_some_and(|t| t > plausible::CREEP_PLAUSIBLE)
+        plausible::check(&e.fitted, &d.scope).iter().any(|f| {
+            (f.kind == "implausible" || f.kind == "at-bound")
+                && (f.parameter == "creep_total" || f.parameter == "creep_tau_slow_s")
+        })
     };
     let better = if polished.fitted.linear.cost <= c.fitted.linear.cost
         && polished.validate_ic <= c.validate_ic + opts.bic_margin

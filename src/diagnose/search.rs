@@ -648,8 +648,9 @@ impl Search {
     }
 
     /// The stronger test of a candidate `c` refused only for its creep
-    /// ([`held_at_plausible`]): when the fit with creep held at the most a piezo shows still
-    /// passes `gate`, it takes `c`'s place and `v` says so; otherwise `v` says it does not.
+    /// ([`held_at_plausible`]): when the fit with the creep held inside what is plausible
+    /// still passes `gate`, it takes `c`'s place and `v` says so; otherwise `v` says it
+    /// does not.
     /// The held fit's evaluations are counted with `c`'s either way.
     fn stronger_test(
         &self,
@@ -663,19 +664,10 @@ impl Search {
             return;
         }
         let (d, opts) = (&self.rec.d, &self.rec.opts);
-        let Some(mut held) = held_at_plausible(c, p, d, opts, salt) else {
+        let Some((mut held, limit)) = held_at_plausible(c, p, d, opts, salt) else {
             return;
         };
-        let free = c
-            .fitted
-            .structure
-            .creep_total(&c.fitted.theta)
-            .unwrap_or(0.0);
-        let limit = format!(
-            "held at {} % creep in all (the most a piezo shows; fitted freely {} %) with every other parameter polished again",
-            100.0 * plausible::CREEP_PLAUSIBLE,
-            crate::render::table::sig(100.0 * free, 3)
-        );
+        let limit = format!("{limit} with every other parameter polished again");
         let vh = refuse_implausible(judge(&held, &self.current, gate), p, &held, d);
         if vh.passed {
             held.fitted.evaluations += c.fitted.evaluations;
