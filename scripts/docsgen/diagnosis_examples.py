@@ -4,8 +4,7 @@ holds for validation), as chapter 7 prints the command. Needs the data folder.
 
 What the docs quote is the tool's own text: the first accepted candidate's line and its
 `! accepted although` flags, the `left out` line, the line of the candidates refused for
-their own parameters, and the report's finding that the validation record starts in
-motion."""
+their own parameters, and the report's finding that a record starts in motion."""
 
 import re
 
@@ -23,7 +22,8 @@ WORDS = {"creep_tau_s": "its fast element at the fastest time constant allowed",
          "creep_gain": "its fast gain at the bound",
          "creep_gain_slow": "its slow gain at the bound",
          "creep_tau_slow_s": "its slow time constant at the bound"}
-MOTION = re.compile(r"the validation record starts in motion: its first .*? of the residual power")
+MOTION = re.compile(r"the (?:training|validation) record starts in motion: its first .*? of the "
+                    r"residual power")
 
 
 def collect(ctx):
@@ -61,6 +61,7 @@ def collect(ctx):
         "refused": [{"name": c["name"], "form": c.get("form"), "round": c["round"],
                      "held": "held at" in c["evidence"]}
                     for c in d["candidates"] if c.get("refused")],
+        "core": (d.get("core_choice") or {}).get("chosen"),
         "held_named": [c["name"] for c in d["candidates"]
                        if c.get("accepted") and "named at the edge of plausible" in c["evidence"]],
         "motion": motion,
@@ -87,6 +88,9 @@ def render(d):
                    f"{said}" + (f", and {' and '.join(other)}" if other else "") + ".")
     else:
         reading = "No candidate is accepted."
+    if d.get("core") and d["core"] != "bouc-wen":
+        reading = (f"The data reject the Bouc-Wen core and the search goes on with the "
+                   f"`{d['core']}` core (`--model auto`). ") + reading
     refused = d.get("refused") or []
     if refused:
         held = sum(1 for r in refused if r["held"])

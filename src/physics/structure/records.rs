@@ -56,10 +56,10 @@ pub(super) struct Records {
     /// Each record's one-record structure, the first at the first record's interval.
     single: Vec<Structure>,
     /// Where the one-record structures hold their initial state and timing.
-    slots: (usize, usize),
-    /// Per further record, where its initial state and (at another interval) its timing sit
-    /// in the joint shape vector.
-    states: Vec<(usize, Option<usize>)>,
+    slots: (Option<usize>, usize),
+    /// Per further record, where its initial state (a Bouc-Wen core's; operators start
+    /// demagnetised) and (at another interval) its timing sit in the joint shape vector.
+    states: Vec<(Option<usize>, Option<usize>)>,
     /// The one-record structure's coefficients that belong to a record.
     own: Vec<usize>,
     /// Every coefficient's name, the further records' own with `@k`.
@@ -83,13 +83,11 @@ impl Structure {
             return base;
         }
         let single: Vec<Structure> = parts.iter().map(|&(_, dt)| base.at_interval(dt)).collect();
-        let slot = |name: &str| {
-            base.specs
-                .iter()
-                .position(|s| s.name == name)
-                .expect("every structure has an initial state and a timing")
-        };
-        let slots = (slot("g0_frac"), slot("timing_samples"));
+        let slot = |name: &str| base.specs.iter().position(|s| s.name == name);
+        let slots = (
+            slot("g0_frac"),
+            slot("timing_samples").expect("every structure has a timing"),
+        );
         let mut specs = base.specs.clone();
         let mut states = Vec::new();
         for (k, &(_, dt)) in parts.iter().enumerate().skip(1) {
@@ -100,7 +98,7 @@ impl Structure {
                 });
                 specs.len() - 1
             };
-            let g0 = add(slots.0, G0[k - 1]);
+            let g0 = slots.0.map(|s| add(s, G0[k - 1]));
             let timing = (!same_interval(dt, parts[0].1)).then(|| add(slots.1, TIMING[k - 1]));
             states.push((g0, timing));
         }
@@ -188,7 +186,9 @@ impl Records {
         }
         let mut th = self.base().carry(shared, &self.single[r]);
         let (g0, timing) = self.states[r - 1];
-        th[self.slots.0] = theta[g0];
+        if let (Some(slot), Some(g0)) = (self.slots.0, g0) {
+            th[slot] = theta[g0];
+        }
         if let Some(t) = timing {
             th[self.slots.1] = theta[t];
         }
@@ -271,7 +271,9 @@ impl Records {
             .base()
             .named_params(&self.theta_of(theta, 0), &coef[..nl.min(coef.len())]);
         for (k, &(g0, timing)) in self.states.iter().enumerate() {
-            v.push((G0[k].to_string(), theta[g0]));
+            if let Some(g0) = g0 {
+                v.push((G0[k].to_string(), theta[g0]));
+            }
             if let Some(t) = timing {
                 v.push((TIMING[k].to_string(), theta[t]));
             }
@@ -392,6 +394,48 @@ mod tests {
         assert!(worst(&joint[u1.len()..], &second) < 1e-14);
         // The carried creep time constants are the same seconds at 400 Hz.
         assert_eq!(th2[at("creep_log10_tau_s")], -1.0);
+    }
+
+    /// An operator core has no initial state to fit (its plays start demagnetised): two
+    /// records at one interval join with no shape parameter of their own, and each is its
+    /// own model (the CubeSpec mirror's two amplitudes under `--model auto` panicked here).
+    #[test]
+    fn a_joint_pi_core_is_each_record_simulated_on_its_own() {
+        let dt = 1e-3;
+        let (u1, u2) = (sine(1500, 2.0, dt, 1.8), sine(900, 0.7, dt, 1.2));
+        let core = crate::physics::structure::PiCore::new(6, &[&u1, &u2]);
+        let one = Structure::new(
+            &[Effect::Creep],
+            None,
+            Context::from_training(&u1, dt).with_pi(Some(core)),
+        );
+        let st = one.on_records(&[(u1.len(), dt), (u2.len(), dt)]);
+        assert_eq!(st.specs().len(), one.specs().len(), "nothing per record");
+        let theta: Vec<f64> = st.specs().iter().map(|s| s.neutral).collect();
+        let names = st.linear_names();
+        let coef: Vec<f64> = (0..names.len()).map(|j| 0.1 * (j as f64 + 1.0)).collect();
+        let u: Vec<f64> = u1.iter().chain(&u2).copied().collect();
+        let (joint, status) = st.simulate(&theta, &coef, &u);
+        assert_eq!(status, Status::Ok);
+        let nl = one.linear_names().len();
+        let mut c2 = coef[..nl].to_vec();
+        for (j, name) in names[..nl].iter().enumerate() {
+            if let Some(k) = names.iter().position(|n| *n == format!("{name}@2")) {
+                c2[j] = coef[k];
+            }
+        }
+        for (part, c, out) in [
+            (&u1, &coef[..nl], &joint[..u1.len()]),
+            (&u2, &c2[..], &joint[u1.len()..]),
+        ] {
+            let (alone, _) = one.simulate(&theta, c, part);
+            let worst = alone
+                .iter()
+                .zip(out)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(worst < 1e-12, "{worst}");
+        }
     }
 
     /// At the true shape the least squares returns every record's own offset, drift and
