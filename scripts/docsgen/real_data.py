@@ -33,9 +33,10 @@ SMALL = ["--model", "bouc-wen-n1", "--effects", "delay", "--bootstrap", "2"]
 SMALL_RUNS = ["mr-position"]
 FRAGMENTS = [f"real-{r}-{k}" for r in RUNS for k in ("figures", "excerpt")]
 VOLATILE = [r'"wall_s": [0-9.e+-]+', r"evaluations, [0-9.]+ s"]
-KEEP = re.compile(r"^(noise floor|exponent|baseline|left out|final|plausibility|unexplained|"
+KEEP = re.compile(r"^(noise floor|core:|exponent|baseline|left out|final|plausibility|unexplained|"
                   r"no structure|next experiment|search ended|\d+ evaluations|\s*coupling|"
-                  r"round \d+)|^  \[time\] .*starts in motion|^  \+ |^      (note|!)|^  (!|also)")
+                  r"round \d+)|^  \[time\] .*starts in motion|^  \+ |^      (note|!)|^  (!|also)|"
+                  r"^  [* ] (bouc-wen|pi|preisach) ")
 
 
 def excerpt(report, data):
