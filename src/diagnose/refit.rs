@@ -110,6 +110,24 @@ struct Restricted {
     seen: Mutex<Vec<(f64, Vec<f64>)>>,
 }
 
+impl Restricted {
+    /// `inner` over the coordinates `free` (its bounds there), the others held at `base`.
+    fn new(inner: Arc<StructureObjective>, free: Vec<usize>, base: Vec<f64>) -> Self {
+        let bounds = Bounds::new(
+            free.iter().map(|&i| inner.bounds().lower()[i]).collect(),
+            free.iter().map(|&i| inner.bounds().upper()[i]).collect(),
+        )
+        .expect("valid bounds");
+        Restricted {
+            inner,
+            free,
+            base,
+            bounds,
+            seen: Mutex::new(Vec::new()),
+        }
+    }
+}
+
 impl Objective for Restricted {
     fn name(&self) -> &str {
         "structure (restricted)"
@@ -356,18 +374,7 @@ pub fn fit_from(
     let mut starts = vec![best.clone()];
     let initial = best.clone();
     if budget.global > 0 && !free.is_empty() {
-        let bounds = Bounds::new(
-            free.iter().map(|&i| obj.bounds().lower()[i]).collect(),
-            free.iter().map(|&i| obj.bounds().upper()[i]).collect(),
-        )
-        .expect("valid bounds");
-        let restricted = Arc::new(Restricted {
-            inner: explore,
-            free: free.clone(),
-            base: best.clone(),
-            bounds,
-            seen: Mutex::new(Vec::new()),
-        });
+        let restricted = Arc::new(Restricted::new(explore, free.clone(), best.clone()));
         // The start, and a grid over the first one or two free coordinates (the others at
         // the start): narrow basins (a lightly damped mode) are then not left to chance.
         let start: Vec<f64> = free.iter().map(|&i| best[i]).collect();
@@ -534,18 +541,7 @@ pub fn polish_held(
     if free.is_empty() {
         return Fitted::at(st, start.to_vec(), u, y, 0);
     }
-    let bounds = Bounds::new(
-        free.iter().map(|&i| obj.bounds().lower()[i]).collect(),
-        free.iter().map(|&i| obj.bounds().upper()[i]).collect(),
-    )
-    .expect("valid bounds");
-    let restricted = Arc::new(Restricted {
-        inner: obj,
-        free: free.clone(),
-        base: start.to_vec(),
-        bounds,
-        seen: Mutex::new(Vec::new()),
-    });
+    let restricted = Arc::new(Restricted::new(obj, free.clone(), start.to_vec()));
     let label = st.label();
     let n = u.len().min(y.len());
     let rec = run_trial(TrialSpec {
