@@ -1124,3 +1124,64 @@ fn creep_with_a_slow_element_beyond_the_record_is_named_without_it() {
         json["final"]["validate_rmse"].as_f64().unwrap() / json["noise_floor"].as_f64().unwrap();
     assert!(over < 1.3, "final at {over}x the noise floor");
 }
+
+/// A model fitted on a slow record and judged on one twenty times faster misses it by
+/// twice its noise while the training residual is noise: the report says the validation
+/// record is not predicted, never that the plain model is enough; with a validation drive
+/// like the training one it is enough.
+#[test]
+fn a_validation_record_predicted_above_its_noise_is_not_called_explained() {
+    let tmp = tempfile::tempdir().unwrap();
+    let twin = "amp=off,mode=off,creep=off";
+    for (signal, duration, seed, out) in [
+        ("sine:freq=0.2,amp=2,offset=2.35", "10", "3", "t"),
+        ("sine:freq=4,amp=2,offset=2.35", "3", "4", "fast"),
+        ("sine:freq=0.3,amp=2,offset=2.35", "8", "4", "slow"),
+    ] {
+        let args = [
+            "simulate",
+            "--signal",
+            signal,
+            "--duration",
+            duration,
+            "--twin",
+            twin,
+            "--seed",
+            seed,
+            "--dt",
+            "0.002",
+            "--out",
+            out,
+            "-q",
+        ];
+        ok(&optbench(&args, tmp.path()));
+    }
+    for (validate, unpredicted) in [("fast", true), ("slow", false)] {
+        let v = format!("{validate}/twin.csv");
+        let args = [
+            "--train",
+            "t/twin.csv",
+            "--validate",
+            v.as_str(),
+            "--model",
+            "bouc-wen-n1",
+            "--effects",
+            "saturation",
+        ];
+        let (text, json) = diagnose_command(&args, tmp.path(), validate);
+        assert_eq!(json["residual_structured"], false, "{text}");
+        assert_eq!(json["validation_unpredicted"], unpredicted, "{text}");
+        assert_eq!(json["unexplained"], unpredicted, "{text}");
+        assert_eq!(
+            text.contains("the plain model is enough"),
+            !unpredicted,
+            "{text}"
+        );
+        if unpredicted {
+            let over = json["final"]["validate_rmse"].as_f64().unwrap()
+                / json["noise_floor"].as_f64().unwrap();
+            assert!(over > 1.5, "{over}");
+            assert!(text.contains("its drive excites what the training drive does not show"));
+        }
+    }
+}

@@ -309,6 +309,10 @@ pub struct Diagnosis {
     pub resolution: f64,
     /// The battery still finds structure in the final residual (whatever its size).
     pub residual_structured: bool,
+    /// The validation record is predicted above its noise even at its band's lower end
+    /// while the training residual may be noise: its drive excites what the training
+    /// drive does not show (counted in `unexplained`).
+    pub validation_unpredicted: bool,
     /// Why the forward search ended.
     pub search_stop: String,
     /// How the validation records judged: by prediction alone ([`super::forecast`]).

@@ -39,6 +39,12 @@ pub const MODE_OVER_BAND: f64 = 2.0;
 /// or a drift standing in.
 pub const CREEP_PLAUSIBLE: f64 = 0.25;
 
+/// A first-order lag shorter than this share of the sampling interval is not resolved: its
+/// fit rests on where the input acts within the interval (a nuisance), which shifts the
+/// drive by up to a sample. Blind seed 20261162 case 72: a 0.86-sample delay named as a lag
+/// of 0.02 samples held from the interval's start.
+pub const LAG_RESOLVED: f64 = 0.1;
+
 /// A parameter within this share of its range from a bound is at that bound.
 pub const AT_BOUND_SHARE: f64 = 0.01;
 
@@ -182,6 +188,24 @@ pub fn check(f: &Fitted, scope: &Scope) -> Vec<Flag> {
         if let Some(flag) = unsupported(name, *value, scope) {
             flags.push(flag);
         }
+    }
+    if let Some(&(_, tau)) = named.iter().find(|(n, _)| n == "lag_tau_s")
+        && tau > 0.0
+        && tau < LAG_RESOLVED * scope.dt
+    {
+        flags.push(Flag {
+            parameter: "lag_tau_s".into(),
+            value: tau,
+            shows_as: Vec::new(),
+            kind: "implausible",
+            why: format!(
+                "{} of a sample: a record sampled every {} s cannot show a lag this short; \
+                 fed a held input it only shifts the held sample, a delay",
+                sig(tau / scope.dt, 2),
+                sig(scope.dt, 3)
+            ),
+            effect: Some(Effect::InputLag),
+        });
     }
     if let Some(total) = f.structure.creep_total(&f.theta)
         && total > CREEP_PLAUSIBLE
@@ -413,6 +437,26 @@ mod tests {
         let f = Fitted::at(&st, theta, &u, &y, 0);
         let scope = Scope::of(&u, &y, dt);
         (f, scope)
+    }
+
+    /// A lag of a fiftieth of a sample is refused (it stands for a shift of the held
+    /// input); one of half a sample, the shortest the blind generator draws is 0.8, is not.
+    #[test]
+    fn a_lag_far_below_a_sample_is_not_a_lag() {
+        let dt = 1e-3;
+        let lag = [(Effect::InputLag, Form::FirstOrder)];
+        let at = |samples: f64| {
+            let (f, scope) = fitted(&lag, &[("lag_log10_tau_s", (samples * dt).log10())], dt);
+            check_effects(&f, &scope, &[Effect::InputLag])
+        };
+        let short = at(0.02);
+        assert_eq!(short.len(), 1, "{short:?}");
+        assert_eq!(short[0].kind, "implausible");
+        assert!(refusal(&short).is_some_and(|r| r.contains("a delay")));
+        assert!(at(0.5).is_empty(), "{:?}", at(0.5));
+        // At the bottom of its range the lag is a wire: nothing to flag.
+        let (f, scope) = fitted(&lag, &[], dt);
+        assert!(check(&f, &scope).is_empty());
     }
 
     #[test]

@@ -244,7 +244,12 @@ pub fn text(d: &Diagnosis) -> String {
     let _ = writeln!(
         s,
         "{}",
-        if d.unexplained {
+        if d.unexplained && !d.residual_structured {
+            format!(
+                "the training residual is noise, yet the validation record is predicted at {:.1}x the noise floor (above it over its whole band): its drive excites what the training drive does not show, and nothing fitted on the training record predicts it (a training drive like the validation one would)",
+                fm.validate_rmse / d.noise_floor.max(1e-300)
+            )
+        } else if d.unexplained {
             "unexplained structure remains in the final residual (battery fails beyond every bootstrap refit)".to_string()
         } else if d.residual_structured {
             format!(

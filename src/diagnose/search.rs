@@ -470,6 +470,15 @@ impl Search {
         }
     }
 
+    /// Whether the current model predicts the validation record above its noise even at
+    /// its band's lower end (a floor not settled is an upper bound: no evidence).
+    fn validation_room(&self) -> bool {
+        self.rec.floor_settled
+            && !self
+                .rec
+                .no_room(self.current_summary.validate_band[0], MIN_EXPLAINED)
+    }
+
     /// Whether the search ends before another forward round (with why): no round left,
     /// nothing the battery can tell from noise, or the validation error at the noise floor.
     fn stops(&mut self) -> bool {
@@ -481,8 +490,12 @@ impl Search {
             r => format!("after round {r}"),
         };
         // Nothing the battery can tell from noise is left (at least one of the baseline's
-        // bootstrap refits scores as high): no name can be earned, the search ends.
-        if self.current_summary.p_value > 0.05 {
+        // bootstrap refits scores as high): no name can be earned, the search ends. Unless
+        // the validation record, whose drive may excite what the training drive barely
+        // does, is predicted above its noise even at its band's lower end: the battery reads
+        // the training residual only (blind seed 20261161 case 65: a 0.5-sample lag, the
+        // training fit at the floor, the validation record at 1.6x it; nothing searched).
+        if self.current_summary.p_value > 0.05 && !self.validation_room() {
             self.search_stop = format!(
                 "{at}: the residual battery finds no structure (bootstrap p {})",
                 crate::render::table::sig(self.current_summary.p_value, 2)
@@ -1270,7 +1283,9 @@ impl Search {
         let resolution = 0.5 * self.rec.train_noise;
         let threshold = self.boot.last().copied().unwrap_or(1.0).max(1.0);
         let structured = self.current_summary.p_value <= 0.05 && self.current.score > threshold;
-        let unexplained = structured && self.current_summary.validate_rmse > resolution;
+        let validation_unpredicted = self.validation_room();
+        let unexplained = (structured && self.current_summary.validate_rmse > resolution)
+            || validation_unpredicted;
         let series = self.series();
         let nuisances = self.nuisances();
         let validation_judging = self.rec.d.judging(&self.current.fitted);
@@ -1320,6 +1335,7 @@ impl Search {
             unexplained,
             resolution,
             residual_structured: structured,
+            validation_unpredicted,
             search_stop: self.search_stop,
             judging_rule: JUDGING_RULE.to_string(),
             outside_vocabulary,

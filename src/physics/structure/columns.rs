@@ -121,18 +121,21 @@ impl Structure {
         }
         let v0 = drive(u0);
         // Previous inputs of the linear blocks, for the hold (`block_hold`): the drive
-        // into the lag; without a lag, the hysteresis output into creep and modes (with a
-        // lag, their inputs are continuous and the exponential hold is exact).
+        // into the lag (either form: a second-order lag fed at the interval's end runs a
+        // sample ahead of a D/A, which the timing's half sample cannot undo; blind seed
+        // 20261161 case 1 was fitted 2x the first-order lag's cost at the true cut-off);
+        // without a lag, the hysteresis output into creep and modes (with a lag, their
+        // inputs are continuous and the exponential hold is exact).
         let hold = sh.block_hold.clamp(0.0, 1.0);
         let mut prev_u = u0;
-        let no_lag = lag.is_none();
+        let no_lag = lag.is_none() && lag2.is_none();
         let mut drives = u.iter().map(|&x0| {
             let mut x = x0;
             if let Some(l) = &mut lag {
                 x = l.step(held(hold, x, &mut prev_u));
             }
             if let Some(l) = &mut lag2 {
-                x = l.step(x);
+                x = l.step(held(hold, x, &mut prev_u));
             }
             drive(x)
         });

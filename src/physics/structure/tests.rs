@@ -343,28 +343,30 @@ fn a_held_input_reaches_the_linear_blocks_one_sample_later() {
     let ctx = Context::from_training(&u, dt);
     let coef = [0.15, 0.01, 0.05];
     let shape = [("log10_s", -0.4), ("w", 0.6)];
-    // Through an input lag: a D/A hold is the whole chain one sample later.
-    let lag = Structure::with_forms(
-        &[(Effect::InputLag, Form::FirstOrder)],
-        Some(1.0),
-        ctx,
-        Placement::After,
-    );
-    let tau = ("lag_log10_tau_s", (2e-3f64).log10());
-    assert!(lag.specs().iter().any(|s| s.name == tau.0));
-    let (held, _) = lag.simulate(
-        &theta_with(
-            &lag,
-            &[shape[0], shape[1], tau, ("block_hold_samples", 1.0)],
-        ),
-        &coef,
-        &u,
-    );
-    let mut later = vec![u[0]];
-    later.extend(&u[..u.len() - 1]);
-    let (want, _) = lag.simulate(&theta_with(&lag, &[shape[0], shape[1], tau]), &coef, &later);
-    for (a, b) in held.iter().zip(&want) {
-        assert!((a - b).abs() < 1e-12, "{a} {b}");
+    // Through an input lag of either form: a D/A hold is the whole chain one sample later
+    // (the second-order lag ignored the hold once, and ran a sample ahead of a D/A).
+    for (form, p) in [
+        (Form::FirstOrder, ("lag_log10_tau_s", (2e-3f64).log10())),
+        (Form::SecondOrder, ("lag2_log10_hz", 60f64.log10())),
+    ] {
+        let lag = Structure::with_forms(
+            &[(Effect::InputLag, form)],
+            Some(1.0),
+            ctx,
+            Placement::After,
+        );
+        assert!(lag.specs().iter().any(|s| s.name == p.0));
+        let (held, _) = lag.simulate(
+            &theta_with(&lag, &[shape[0], shape[1], p, ("block_hold_samples", 1.0)]),
+            &coef,
+            &u,
+        );
+        let mut later = vec![u[0]];
+        later.extend(&u[..u.len() - 1]);
+        let (want, _) = lag.simulate(&theta_with(&lag, &[shape[0], shape[1], p]), &coef, &later);
+        for (a, b) in held.iter().zip(&want) {
+            assert!((a - b).abs() < 1e-12, "{form:?}: {a} {b}");
+        }
     }
     // Without a linear block there is nothing to hold (the hysteresis is
     // rate-independent): the nuisance is not offered.
