@@ -93,6 +93,29 @@ def oov_verdict(diagnosis):
             "outside_vocabulary": outside_vocabulary(diagnosis)}
 
 
+def tie_partners(diagnosis):
+    """Per accepted candidate's effect, the effects the tool declared it tied with (`ties`):
+    the records could not tell them apart."""
+    out = defaultdict(set)
+    for c in diagnosis.get("candidates") or []:
+        if c.get("accepted") and not c.get("dropped"):
+            for part in str(c.get("name", "")).split("+"):
+                out[normalise(part)] |= {normalise(str(t.get("name", "")).split()[0]) for t in c.get("ties") or []}
+    return out
+
+
+def declared_tie(truth_effects, named, diagnosis):
+    """A miss the tool itself declared undecidable: every true effect not named is a declared
+    tie partner of a named effect that is not true, and each such named effect is tied with a
+    missed one. Reported beside the exact match, never in it."""
+    miss, extra = set(truth_effects) - set(named), set(named) - set(truth_effects)
+    if not miss or len(miss) != len(extra):
+        return False
+    ties = tie_partners(diagnosis)
+    return all(any(m in ties.get(e, ()) for e in extra) for m in miss) and \
+        all(any(m in ties.get(e, ()) for m in miss) for e in extra)
+
+
 def generator_notes(truth):
     """What the generator flags about a case: target not reached, sizes outside the nominal range or at a bound."""
     notes = []
@@ -128,6 +151,10 @@ def score(results):
     out["pairs"] = rate(sum(r["exact"] for r in pairs), len(pairs))
     out["nulls_false_alarm"] = rate(sum(bool(r["named"]) for r in nulls), len(nulls))
     out["overall"] = rate(sum(r["exact"] for r in done), len(done))
+    for r in done:
+        r["declared_tie"] = not r["exact"] and declared_tie(r["truth"]["effects"], r["named"], r["diagnosis"])
+    out["declared_ties"] = {g: sum(r["declared_tie"] for r in rs) for g, rs in
+                            (("singles", singles), ("pairs", pairs))}
     per = {}
     confusion = {e: Counter() for e in EFFECTS}
     for e in EFFECTS:
@@ -176,7 +203,8 @@ def score(results):
         rel = [x["baseline"] / x["target"] for x in eff_r]
         out["baseline_over_target"] = {"median": statistics.median(rel), "min": min(rel), "max": max(rel)}
     out["failed"] = [{"id": r["id"], "truth": r["truth"]["effects"], "forms": r["truth"]["forms"],
-                      "named": r["named"], "notes": generator_notes(r["truth"]), **r["ratios"]}
+                      "named": r["named"], "declared_tie": r["declared_tie"],
+                      "notes": generator_notes(r["truth"]), **r["ratios"]}
                      for r in done if not r["exact"]]
     out["generator_flags"] = {r["id"]: generator_notes(r["truth"]) for r in done_all if generator_notes(r["truth"])}
     if oov_done:
@@ -234,8 +262,13 @@ def markdown(s, title="Blind proof of optbench diagnose"):
     for e in EFFECTS:
         L.append(f"| {e} (single) | {_fmt(s['per_effect'][e])} |")
     L += [f"| **all singles** | {_fmt(s['singles'])} |", f"| **pairs** | {_fmt(s['pairs'])} |",
-          f"| **overall** | {_fmt(s['overall'])} |", "",
-          f"False alarms on nulls (any name): {_fmt(s['nulls_false_alarm'])}", "",
+          f"| **overall** | {_fmt(s['overall'])} |", ""]
+    ties = s.get("declared_ties") or {}
+    if any(ties.values()):
+        L += [f"Not exact, but declared by the tool as a tie with the truth (the records cannot tell the "
+              f"named effect from the true one; counted as misses above): singles {ties.get('singles', 0)}, "
+              f"pairs {ties.get('pairs', 0)}.", ""]
+    L += [f"False alarms on nulls (any name): {_fmt(s['nulls_false_alarm'])}", "",
           "## Confusion (singles: truth x named, counts)", "",
           "| truth \\ named | " + " | ".join(EFFECTS + ["none"]) + " |",
           "|---" * (len(EFFECTS) + 2) + "|"]
@@ -272,7 +305,8 @@ def markdown(s, title="Blind proof of optbench diagnose"):
               "|---|---|---|---|---|---|---|"]
         for f in s["failed"]:
             tr = ", ".join(f"{e} ({f['forms'][e]})" for e in f["truth"]) or "none"
-            L.append(f"| {f['id']} | {tr} | {', '.join(f['named']) or 'none'} | {_num(f['target'])} | "
+            named = (', '.join(f['named']) or 'none') + (" (declared tie)" if f.get("declared_tie") else "")
+            L.append(f"| {f['id']} | {tr} | {named} | {_num(f['target'])} | "
                      f"{_num(f['linearised'])} | {_num(f['baseline'])} | {'; '.join(f['notes'])} |")
     L += ["", f"Cases the generator flags: {len(s.get('generator_flags', {}))}"
           + "".join(f"\n- {k}: {'; '.join(v)}" for k, v in s.get("generator_flags", {}).items())]

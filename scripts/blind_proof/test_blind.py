@@ -79,6 +79,17 @@ class TestWilson(unittest.TestCase):
         self.assertEqual(score.score(slow)["wall_s"]["over_60s"], [("c", 75.5), ("a", 61.0)])
         self.assertIn("over 60 s: 2 (c 75.5 s, a 61.0 s)", score.markdown(score.score(slow)))
         self.assertIn("| creep |", score.markdown(s))
+        # A miss the tool declared a tie with the truth is reported as such, still a miss.
+        tied = {"left_out": ["delay"], "candidates": [
+            {"name": "delay", "accepted": True, "ties": [{"name": "input-lag", "form": "first-order"}]}]}
+        untied = {"left_out": ["delay"], "candidates": [{"name": "delay", "accepted": True, "ties": []}]}
+        st = score.score([{"id": "e", "truth": truth(["input-lag"]), "diagnosis": tied, "wall_s": 1},
+                          {"id": "f", "truth": truth(["input-lag"]), "diagnosis": untied, "wall_s": 1}])
+        self.assertEqual(st["singles"]["k"], 0)
+        self.assertEqual(st["declared_ties"], {"singles": 1, "pairs": 0})
+        self.assertEqual([f["declared_tie"] for f in st["failed"]], [True, False])
+        self.assertIn("(declared tie)", score.markdown(st))
+        self.assertFalse(score.declared_tie(["creep", "delay"], ["delay"], tied))
         t = truth(["dynamics"])
         t.update(target_reached=False, effect_settings={"dynamics": {"in_nominal_range": False, "at_bound": True}})
         self.assertEqual(len(score.generator_notes(t)), 3)

@@ -5,6 +5,7 @@
 //! coefficients are solved by least squares inside each evaluation (variable projection:
 //! the polish's Jacobian is that of the projected residuals).
 
+use super::plausible::AT_BOUND_SHARE;
 use crate::base::TrialSeed;
 use crate::harness::{Optimizer, OptimizerConfig, TrialRecord};
 use crate::objective::{Bounds, Objective};
@@ -503,10 +504,36 @@ pub fn fit_from(
         }
         if let Some((c, x)) = polished {
             // A polish from a hint may end above the global stage's best.
-            best = match keep_if_worse {
-                Some((k, kept)) if k < c => kept,
-                _ => x,
+            let (cost, x) = match keep_if_worse {
+                Some((k, kept)) if k < c => (k, kept),
+                _ => (c, x),
             };
+            best = x;
+            if let Some(x0) = hold_flipped(st, &best) {
+                let rec = run_trial(TrialSpec {
+                    objective_id: &label,
+                    optimizer_id: "levenberg-marquardt",
+                    trial: budget.starts,
+                    objective: obj.clone(),
+                    optimizer: &LevenbergMarquardtFrom {
+                        start: x0,
+                        rel_tol: 0.1 / n.max(1) as f64,
+                    },
+                    budget: budget.polish,
+                    stop_value: None,
+                    stall: None,
+                    seed: TrialSeed::derive(
+                        seed,
+                        &label,
+                        "levenberg-marquardt",
+                        budget.starts as u64,
+                    ),
+                });
+                evaluations += rec.evaluations;
+                if rec.best < cost {
+                    best = rec.best_x;
+                }
+            }
         }
     }
     // Screened out after a search of the first samples only: that search's best may fit
@@ -522,6 +549,25 @@ pub fn fit_from(
         };
     }
     Fitted::at(st, best, u, y, evaluations)
+}
+
+/// `theta` with the D/A hold of the linear blocks on and the timing moved back by the
+/// sample the hold adds, when the timing presses against its upper bound with the hold
+/// off: the shift the data want lies beyond the timing's range, and the hold reaches it
+/// across a ridge that a polish from hold 0 does not cross (blind seed 20261163 case 78: a
+/// mode at 157 Hz fitted with the timing at +0.5 samples, the missing half sample then
+/// named as a delay).
+fn hold_flipped(st: &Structure, theta: &[f64]) -> Option<Vec<f64>> {
+    let specs = st.specs();
+    let at = |name: &str| specs.iter().position(|s| s.name == name);
+    let (h, t) = (at("block_hold_samples")?, at("timing_samples")?);
+    let room = AT_BOUND_SHARE * (specs[t].upper - specs[t].lower);
+    (theta[h] < 0.5 && specs[t].upper - theta[t] <= room).then(|| {
+        let mut x = theta.to_vec();
+        x[h] = 1.0;
+        x[t] = (theta[t] - 1.0).max(specs[t].lower);
+        x
+    })
 }
 
 /// A polish (`budget.polish` evaluations) of every coordinate of `start` but `held`, which
@@ -779,6 +825,64 @@ mod tests {
         let theta = theta_with(&plain, &[("log10_s", -0.4), ("w", 0.6)]);
         let (y, _) = plain.simulate(&theta, &[0.15, 0.01, 0.05], &u);
         (u, plain, theta, y)
+    }
+
+    /// A mode behind a D/A hold whose input also comes 0.3 samples late: 1.3 samples in
+    /// all, beyond the timing's range (-1 to +0.5). A polish from the hold off presses the
+    /// timing against +0.5; the fit then tries the hold on with the timing a sample back and
+    /// finds the record's own shape.
+    #[test]
+    fn a_shift_beyond_the_timing_is_reached_through_the_hold() {
+        let (u, plain, _, _) = plain_sine_record(3000, 5.0);
+        let st = plain.extended_with(Effect::Dynamics, crate::physics::structure::Form::OneMode);
+        let shape = [
+            ("log10_s", -0.4),
+            ("w", 0.6),
+            ("mode_log10_hz", 60f64.log10()),
+            ("mode_log10_zeta", 0.1f64.log10()),
+        ];
+        let mut truth = shape.to_vec();
+        truth.extend([("timing_samples", 0.3), ("block_hold_samples", 1.0)]);
+        let (y, _) = st.simulate(&theta_with(&st, &truth), &[0.15, 0.01, 0.05], &u);
+        let at = |name: &str| st.specs().iter().position(|s| s.name == name).unwrap();
+        let start = theta_with(&st, &shape);
+        let pressed = {
+            let mut x = start.clone();
+            x[at("timing_samples")] = 0.5;
+            x
+        };
+        let flipped = hold_flipped(&st, &pressed).expect("timing at its bound, hold off");
+        assert_eq!(flipped[at("block_hold_samples")], 1.0);
+        assert!((flipped[at("timing_samples")] + 0.5).abs() < 1e-12);
+        assert!(
+            hold_flipped(&st, &start).is_none(),
+            "timing inside its range"
+        );
+        let budget = Budget {
+            global: 0,
+            swarm: 10,
+            polish: 600,
+            starts: 1,
+            global_window: 0,
+            screen: 0.0,
+        };
+        let f = fit(
+            &st,
+            &Arc::new(u.clone()),
+            &Arc::new(y.clone()),
+            Some(&start),
+            None,
+            budget,
+            3,
+        );
+        assert!(f.theta[at("block_hold_samples")] > 0.9, "{:?}", f.theta);
+        assert!(
+            (f.theta[at("timing_samples")] - 0.3).abs() < 0.05,
+            "{:?}",
+            f.theta
+        );
+        let rms = (f.linear.cost / y.len() as f64).sqrt();
+        assert!(rms < 1e-6, "rms {rms}");
     }
 
     /// A plain Bouc-Wen record (no asymmetry), and the nested asymmetry candidate started at
