@@ -76,6 +76,10 @@ def collect(ctx):
         data["unexplained"] = {
             "feature": top["feature"], "gain": top["gain"], "band": top["gain_band"],
             "predicts": o["predicts"], "figure": figure("method_unexplained.png"),
+            # The features of the combined correction (a spectral line not coherent with
+            # the drive is listed with no gain, outside it).
+            "features": [d["feature"] for d in o["depends_on"] or [] if d["gain"] > 0],
+            "combined_gain": o["gain"], "combined_band": o["gain_band"],
         }
     return data
 
@@ -151,6 +155,22 @@ def render(d):
         def pct(v):
             return f"{100 * v:.0f} %"
 
+        def alone(x):
+            """What the figure's one feature shows, and what the report claims."""
+            single = x["band"][0] > 0
+            if not x["predicts"]:
+                return ("the training residual follows it, the validation residual does not lie on "
+                        "it and the band reaches below zero, so no dependence is claimed.")
+            if single and len(x.get("features") or []) <= 1:
+                return "the validation residual follows it, and it predicts the held-out record."
+            others = [f for f in x.get("features") or [] if f != x["feature"]]
+            return ((("alone its band reaches below zero; " if not single else "")
+                     + f"the report's claim is the correction on it and the {', '.join(others)} "
+                     f"together, which removes {pct(x['combined_gain'])} (95 % "
+                     f"{pct(x['combined_band'][0])} to {pct(x['combined_band'][1])}) of the held-out "
+                     "record's mean square") if others else
+                    "the correction predicts the held-out record only in part.")
+
         f["method-figure-unexplained"] = (
             "![P-885 final residual against the feature it depends on most, binned, on "
             "training and validation, with the correction fitted on "
@@ -160,9 +180,5 @@ def render(d):
             "removes most of the validation mean square, on training (solid) and on the test "
             "record's scored samples (dashed), with the correction fitted on training "
             f"(dotted), which removes {pct(x['gain'])} (95 % {pct(x['band'][0])} to "
-            f"{pct(x['band'][1])}): "
-            + ("the validation residual follows it, and it predicts the held-out record." if
-               x["predicts"] else
-               "the training residual follows it, the validation residual does not lie on "
-               "it and the band reaches below zero, so no dependence is claimed.") + "*")
+            f"{pct(x['band'][1])}): " + alone(x) + "*")
     return f
