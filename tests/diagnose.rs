@@ -71,6 +71,36 @@ fn diagnose_files(
     diagnose_command(&a, dir, out)
 }
 
+/// `optbench simulate` of the twin with overrides `twin`, driven by `signal` for `duration`
+/// s every `dt` s, noise seed `seed`, into `dir/out`.
+fn simulate_twin(
+    dir: &std::path::Path,
+    signal: &str,
+    duration: &str,
+    twin: &str,
+    seed: &str,
+    dt: &str,
+    out: &str,
+) {
+    let args = [
+        "simulate",
+        "--signal",
+        signal,
+        "--duration",
+        duration,
+        "--twin",
+        twin,
+        "--seed",
+        seed,
+        "--dt",
+        dt,
+        "--out",
+        out,
+        "-q",
+    ];
+    ok(&optbench(&args, dir));
+}
+
 #[test]
 fn every_concealed_effect_is_named_and_the_null_case_raises_no_alarm() {
     let kinds = proof::kinds();
@@ -1065,23 +1095,7 @@ fn creep_with_a_slow_element_beyond_the_record_is_named_without_it() {
         ),
         ("sine:freq=0.5,amp=2,offset=2.35", "8", "4", "v"),
     ] {
-        let args = [
-            "simulate",
-            "--signal",
-            signal,
-            "--duration",
-            duration,
-            "--twin",
-            twin,
-            "--seed",
-            seed,
-            "--dt",
-            "0.005",
-            "--out",
-            out,
-            "-q",
-        ];
-        ok(&optbench(&args, tmp.path()));
+        simulate_twin(tmp.path(), signal, duration, twin, seed, "0.005", out);
     }
     let args = [
         "--train",
@@ -1138,23 +1152,7 @@ fn a_validation_record_predicted_above_its_noise_is_not_called_explained() {
         ("sine:freq=4,amp=2,offset=2.35", "3", "4", "fast"),
         ("sine:freq=0.3,amp=2,offset=2.35", "8", "4", "slow"),
     ] {
-        let args = [
-            "simulate",
-            "--signal",
-            signal,
-            "--duration",
-            duration,
-            "--twin",
-            twin,
-            "--seed",
-            seed,
-            "--dt",
-            "0.002",
-            "--out",
-            out,
-            "-q",
-        ];
-        ok(&optbench(&args, tmp.path()));
+        simulate_twin(tmp.path(), signal, duration, twin, seed, "0.002", out);
     }
     for (validate, unpredicted) in [("fast", true), ("slow", false)] {
         let v = format!("{validate}/twin.csv");

@@ -157,19 +157,19 @@ def render(d):
 
         def alone(x):
             """What the figure's one feature shows, and what the report claims."""
-            single = x["band"][0] > 0
             if not x["predicts"]:
                 return ("the training residual follows it, the validation residual does not lie on "
                         "it and the band reaches below zero, so no dependence is claimed.")
-            if single and len(x.get("features") or []) <= 1:
-                return "the validation residual follows it, and it predicts the held-out record."
+            single = x["band"][0] > 0
             others = [f for f in x.get("features") or [] if f != x["feature"]]
-            return ((("alone its band reaches below zero; " if not single else "")
-                     + f"the report's claim is the correction on it and the {', '.join(others)} "
-                     f"together, which removes {pct(x['combined_gain'])} (95 % "
-                     f"{pct(x['combined_band'][0])} to {pct(x['combined_band'][1])}) of the held-out "
-                     "record's mean square") if others else
-                    "the correction predicts the held-out record only in part.")
+            if not others:
+                return ("the validation residual follows it, and it predicts the held-out record."
+                        if single else "the correction predicts the held-out record only in part.")
+            return (("" if single else "alone its band reaches below zero; ")
+                    + f"the report's claim is the correction on it and the {', '.join(others)} "
+                    f"together, which removes {pct(x['combined_gain'])} (95 % "
+                    f"{pct(x['combined_band'][0])} to {pct(x['combined_band'][1])}) of the held-out "
+                    "record's mean square")
 
         f["method-figure-unexplained"] = (
             "![P-885 final residual against the feature it depends on most, binned, on "

@@ -481,22 +481,7 @@ pub fn fit_from(
     if !best.is_empty() && !screened_out {
         let mut polished: Option<(f64, Vec<f64>)> = None;
         for (k, x0) in starts.into_iter().enumerate() {
-            let rec = run_trial(TrialSpec {
-                objective_id: &label,
-                optimizer_id: "levenberg-marquardt",
-                trial: k,
-                objective: obj.clone(),
-                optimizer: &LevenbergMarquardtFrom {
-                    start: x0,
-                    // Converged: two steps in a row moved BIC (N ln SSE) by less than 0.1
-                    // each, far below any decision margin.
-                    rel_tol: 0.1 / n.max(1) as f64,
-                },
-                budget: budget.polish,
-                stop_value: None,
-                stall: None,
-                seed: TrialSeed::derive(seed, &label, "levenberg-marquardt", k as u64),
-            });
+            let rec = lm_polish(obj.clone(), &label, x0, k, budget.polish, n, seed);
             evaluations += rec.evaluations;
             if polished.as_ref().is_none_or(|p| rec.best < p.0) {
                 polished = Some((rec.best, rec.best_x));
@@ -510,25 +495,15 @@ pub fn fit_from(
             };
             best = x;
             if let Some(x0) = hold_flipped(st, &best) {
-                let rec = run_trial(TrialSpec {
-                    objective_id: &label,
-                    optimizer_id: "levenberg-marquardt",
-                    trial: budget.starts,
-                    objective: obj.clone(),
-                    optimizer: &LevenbergMarquardtFrom {
-                        start: x0,
-                        rel_tol: 0.1 / n.max(1) as f64,
-                    },
-                    budget: budget.polish,
-                    stop_value: None,
-                    stall: None,
-                    seed: TrialSeed::derive(
-                        seed,
-                        &label,
-                        "levenberg-marquardt",
-                        budget.starts as u64,
-                    ),
-                });
+                let rec = lm_polish(
+                    obj.clone(),
+                    &label,
+                    x0,
+                    budget.starts,
+                    budget.polish,
+                    n,
+                    seed,
+                );
                 evaluations += rec.evaluations;
                 if rec.best < cost {
                     best = rec.best_x;
@@ -549,6 +524,34 @@ pub fn fit_from(
         };
     }
     Fitted::at(st, best, u, y, evaluations)
+}
+
+/// One Levenberg-Marquardt polish of `obj` from `start` (`budget` evaluations at most),
+/// converged once two steps in a row move BIC (N ln SSE, `n` samples) by less than 0.1
+/// each, far below any decision margin; `trial` numbers its random stream.
+fn lm_polish(
+    obj: Arc<dyn Objective>,
+    label: &str,
+    start: Vec<f64>,
+    trial: usize,
+    budget: u64,
+    n: usize,
+    seed: u64,
+) -> TrialRecord {
+    run_trial(TrialSpec {
+        objective_id: label,
+        optimizer_id: "levenberg-marquardt",
+        trial,
+        objective: obj,
+        optimizer: &LevenbergMarquardtFrom {
+            start,
+            rel_tol: 0.1 / n.max(1) as f64,
+        },
+        budget,
+        stop_value: None,
+        stall: None,
+        seed: TrialSeed::derive(seed, label, "levenberg-marquardt", trial as u64),
+    })
 }
 
 /// `theta` with the D/A hold of the linear blocks on and the timing moved back by the
@@ -590,20 +593,8 @@ pub fn polish_held(
     let restricted = Arc::new(Restricted::new(obj, free.clone(), start.to_vec()));
     let label = st.label();
     let n = u.len().min(y.len());
-    let rec = run_trial(TrialSpec {
-        objective_id: &label,
-        optimizer_id: "levenberg-marquardt",
-        trial: 0,
-        objective: restricted,
-        optimizer: &LevenbergMarquardtFrom {
-            start: free.iter().map(|&i| start[i]).collect(),
-            rel_tol: 0.1 / n.max(1) as f64,
-        },
-        budget: budget.polish,
-        stop_value: None,
-        stall: None,
-        seed: TrialSeed::derive(seed, &label, "levenberg-marquardt", 0),
-    });
+    let start_free = free.iter().map(|&i| start[i]).collect();
+    let rec = lm_polish(restricted, &label, start_free, 0, budget.polish, n, seed);
     let mut best = start.to_vec();
     for (&i, &v) in free.iter().zip(&rec.best_x) {
         best[i] = v;
